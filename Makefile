@@ -1,0 +1,23 @@
+# Quick start: `make demo` runs the simulated robot demo, `make test` runs every test.
+# Both set the workspace up first (venv, pinned wheels, colcon build) and skip what is done.
+PYTHON ?= python3
+PYTEST_ARGS ?=
+
+.PHONY: setup demo test lint colcon-test bench clean
+
+setup:
+	@$(PYTHON) tools/bootstrap.py
+
+demo: setup
+	@./mecanum launch mecanum_bringup demo.launch.yaml
+
+test: setup
+	@./mecanum exec python -m pytest $(PYTEST_ARGS)
+
+colcon-test: setup
+	@./mecanum exec colcon --log-base log/colcon test --base-paths src --build-base build \
+	  --install-base install --event-handlers console_cohesion+
+	@./mecanum exec colcon test-result --test-result-base build --verbose
+
+clean:
+	rm -rf build install log .venv
