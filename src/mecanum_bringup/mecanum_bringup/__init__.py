@@ -1,0 +1,1 @@
+"""Bringup of the mecanum robot."""

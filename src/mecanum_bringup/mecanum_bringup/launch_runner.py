@@ -1,0 +1,269 @@
+"""Run a system description without ``ros2 launch``: the pip-setup launcher.
+
+Usage (``./mecanum launch`` wraps this)::
+
+    python -m mecanum_bringup.launch_runner PACKAGE FILE [name:=value ...]
+    python -m mecanum_bringup.launch_runner PATH/TO/FILE.launch.yaml [name:=value ...]
+
+Each node runs as its own process in its own process group, started with the
+same ``--ros-args`` command line ``launch_ros`` would build. Its output lines
+are prefixed with ``[node_name]``. Nodes marked ``respawn`` are restarted after
+``respawn_delay``; a node marked ``on_exit: shutdown`` stops the whole system
+when it exits (the runner then exits with that node's code). On Ctrl-C or
+SIGTERM every node gets SIGINT, then SIGTERM, then SIGKILL, so the system is
+down within about five seconds, and children die with the runner even if it is
+killed (PR_SET_PDEATHSIG), leaving no orphan processes.
+"""
+
+import argparse
+import ctypes
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import Dict, List, Mapping, Optional, TextIO
+
+from mecanum_bringup.isolation import isolated_environment, lease_domain_id
+from mecanum_bringup.system_description import (
+    default_find_package_share, load_system, NodeProcess, parse_launch_arguments, System,
+    SystemDescriptionError)
+
+_PR_SET_PDEATHSIG = 1
+
+
+def find_executable(package: str, executable: str, environ: Mapping[str, str]) -> Path:
+    """Find ``lib/PACKAGE/EXECUTABLE`` in the ament prefixes, as ``ros2 run`` does."""
+    for prefix in environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
+        if not prefix:
+            continue
+        candidate = Path(prefix) / 'lib' / package / executable
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return candidate
+    raise FileNotFoundError(
+        f'executable {executable!r} of package {package!r} not found in AMENT_PREFIX_PATH; '
+        'is the workspace built (make setup) and its environment sourced?')
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: get SIGTERM if the runner dies, however it dies."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+
+
+class ManagedNode:
+    """A node process of the system, with its restart bookkeeping."""
+
+    def __init__(self, spec: NodeProcess, command: List[str], env: Dict[str, str]):
+        self.spec = spec
+        self.command = command
+        self.env = env
+        self.process: Optional[subprocess.Popen] = None
+        self.starts = 0
+        self.restart_at: Optional[float] = None
+        self.reader: Optional[threading.Thread] = None
+
+
+class Supervisor:
+    """Starts the nodes of a System and keeps them running until shutdown."""
+
+    def __init__(self, system: System, environ: Mapping[str, str], out: TextIO = sys.stdout,
+                 sigint_timeout_s: float = 3.0, sigterm_timeout_s: float = 2.0):
+        self._out = out
+        self._out_lock = threading.Lock()
+        self._sigint_timeout_s = sigint_timeout_s
+        self._sigterm_timeout_s = sigterm_timeout_s
+        self._shutdown_reason: Optional[str] = None
+        self._exit_code = 0
+        base_env = dict(environ)
+        base_env.setdefault('PYTHONUNBUFFERED', '1')
+        base_env.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
+        if getattr(out, 'isatty', lambda: False)():
+            base_env.setdefault('RCUTILS_COLORIZED_OUTPUT', '1')
+        self.nodes: List[ManagedNode] = []
+        for spec in system.nodes:
+            executable = find_executable(spec.package, spec.executable, base_env)
+            command = [str(executable), *spec.arguments, *spec.ros_args()]
+            self.nodes.append(ManagedNode(spec, command, dict(base_env, **spec.env)))
+
+    def say(self, label: str, text: str) -> None:
+        """Print one line with a ``[label]`` prefix, whole even with many writers."""
+        with self._out_lock:
+            self._out.write(f'[{label}] {text}\n')
+            self._out.flush()
+
+    def request_shutdown(self, reason: str, exit_code: int = 0) -> None:
+        """Ask the supervision loop to stop every node (first request wins)."""
+        if self._shutdown_reason is None:
+            self._shutdown_reason = reason
+            self._exit_code = exit_code
+
+    @property
+    def shutting_down(self) -> bool:
+        """Whether shutdown was requested."""
+        return self._shutdown_reason is not None
+
+    def _start(self, node: ManagedNode) -> None:
+        node.process = subprocess.Popen(
+            node.command, env=node.env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent)
+        node.starts += 1
+        node.restart_at = None
+        verb = 'started' if node.starts == 1 else f'restarted (start {node.starts})'
+        self.say('runner', f'{verb} {node.spec.label} (pid {node.process.pid}): '
+                           f'{node.spec.package}/{node.spec.executable}')
+        node.reader = threading.Thread(target=self._forward_output, args=(node, node.process),
+                                       daemon=True)
+        node.reader.start()
+
+    def _forward_output(self, node: ManagedNode, process: subprocess.Popen) -> None:
+        for raw in iter(process.stdout.readline, b''):
+            self.say(node.spec.label, raw.decode(errors='replace').rstrip('\n'))
+        process.stdout.close()
+
+    def _check(self, node: ManagedNode, now: float) -> None:
+        """React to a node's exit: respawn it, shut the system down, or report it."""
+        if node.process is None:
+            if node.restart_at is not None and now >= node.restart_at:
+                self._start(node)
+            return
+        code = node.process.poll()
+        if code is None:
+            return
+        if node.reader is not None:
+            node.reader.join(timeout=1.0)
+        node.process = None
+        self.say('runner', f'{node.spec.label} exited with code {code}')
+        if node.spec.shutdown_on_exit:
+            self.request_shutdown(f'{node.spec.label} exited (on_exit: shutdown)', code)
+        elif node.spec.respawn:
+            node.restart_at = now + node.spec.respawn_delay_s
+            self.say('runner', f'respawning {node.spec.label} in {node.spec.respawn_delay_s:g} s')
+
+    def run(self) -> int:
+        """Start every node and supervise until shutdown; return the exit code."""
+        try:
+            for node in self.nodes:
+                self._start(node)
+            while not self.shutting_down:
+                now = time.monotonic()
+                for node in self.nodes:
+                    self._check(node, now)
+                time.sleep(0.05)
+        finally:
+            self.stop_all()
+        return self._exit_code
+
+    def stop_all(self) -> None:
+        """Stop every node: SIGINT, then SIGTERM, then SIGKILL, each to its process group."""
+        reason = self._shutdown_reason or 'runner stopping'
+        running = [n for n in self.nodes if n.process is not None]
+        if running:
+            self.say('runner', f'shutting down ({reason}): stopping '
+                               + ', '.join(n.spec.label for n in running))
+        groups = [n.process.pid for n in running]
+        for sig, timeout in ((signal.SIGINT, self._sigint_timeout_s),
+                             (signal.SIGTERM, self._sigterm_timeout_s)):
+            alive = [n for n in running if n.process.poll() is None]
+            if not alive:
+                break
+            if sig == signal.SIGTERM:
+                self.say('runner', 'still running after SIGINT, sending SIGTERM to '
+                                   + ', '.join(n.spec.label for n in alive))
+            for node in alive:
+                _signal_group(node.process.pid, sig)
+            deadline = time.monotonic() + timeout
+            while time.monotonic() < deadline and any(n.process.poll() is None for n in alive):
+                time.sleep(0.02)
+        for node in running:
+            if node.process.poll() is None:
+                self.say('runner', f'killing {node.spec.label} (SIGKILL)')
+        # Leaders may be gone while their children linger: the whole group goes.
+        for pgid in groups:
+            _signal_group(pgid, signal.SIGKILL)
+        for node in running:
+            node.process.wait()
+            if node.reader is not None:
+                node.reader.join(timeout=1.0)
+            node.process = None
+
+
+def _signal_group(pgid: int, sig: int) -> None:
+    try:
+        os.killpg(pgid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def resolve_launch_file(package_or_path: str, file_name: Optional[str]) -> Path:
+    """Return the launch file named like ``ros2 launch`` takes it (package + file, or a path)."""
+    if file_name is None:
+        return Path(package_or_path)
+    share = Path(default_find_package_share(package_or_path))
+    for candidate in (share / 'launch' / file_name, share / file_name):
+        if candidate.exists() or candidate.with_name(
+                candidate.name.replace('.launch.py', '.launch.yaml')).exists():
+            return candidate
+    raise SystemDescriptionError(f'no launch file {file_name!r} in package {package_or_path!r}')
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Command line entry point; returns the process exit code."""
+    parser = argparse.ArgumentParser(
+        prog='launch_runner',
+        description='Run a launch YAML system description without ros2 launch.')
+    parser.add_argument('package_or_path', help='package name, or path of a launch file')
+    parser.add_argument('rest', nargs='*', help='[launch file] [name:=value ...]')
+    parser.add_argument('--isolated', action='store_true',
+                        help='run in a ROS domain no other process of this machine uses')
+    parser.add_argument('--show-args', action='store_true',
+                        help='print the launch arguments and their values, then exit')
+    parser.add_argument('--print', dest='print_only', action='store_true',
+                        help='print the command of every node, then exit')
+    options = parser.parse_args(argv)
+    file_name = None
+    rest = list(options.rest)
+    if rest and ':=' not in rest[0]:
+        file_name = rest.pop(0)
+    try:
+        path = resolve_launch_file(options.package_or_path, file_name)
+        system = load_system(path, parse_launch_arguments(rest))
+    except (SystemDescriptionError, LookupError) as error:
+        print(f'[runner] error: {error}', file=sys.stderr)
+        return 2
+    if options.show_args:
+        for name, value in system.arguments.items():
+            print(f'{name}:={value}')
+        return 0
+    lease = lease_domain_id() if options.isolated else None
+    environ = isolated_environment(os.environ, lease.domain_id if lease else None)
+    try:
+        supervisor = Supervisor(system, environ)
+    except FileNotFoundError as error:
+        print(f'[runner] error: {error}', file=sys.stderr)
+        return 2
+    if options.print_only:
+        for node in supervisor.nodes:
+            print(' '.join(node.command))
+        return 0
+    supervisor.say('runner', f'system {path.name}: {len(supervisor.nodes)} nodes ('
+                   + ', '.join(n.spec.label for n in supervisor.nodes) + '); '
+                   f'ROS_DOMAIN_ID={environ.get("ROS_DOMAIN_ID", "0")}, discovery range '
+                   f'{environ["ROS_AUTOMATIC_DISCOVERY_RANGE"]}; Ctrl-C stops everything')
+
+    def on_signal(signum: int, _frame: object) -> None:
+        supervisor.request_shutdown(f'received {signal.Signals(signum).name}')
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    try:
+        return supervisor.run()
+    finally:
+        if lease is not None:
+            lease.release()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,399 @@
+"""Read a system description: a ROS 2 launch file in the YAML frontend format.
+
+A system (which nodes run, from which package and executable, with which
+parameter files, remappings, namespace and respawn policy) is written once as a
+``*.launch.yaml`` file. On an apt ROS 2 install ``ros2 launch`` reads it
+natively (through the ``launch/*.launch.py`` wrappers); in the pip setup, where
+``launch`` is not installable, :mod:`mecanum_bringup.launch_runner` reads it
+with this module. Both read the same file, so they cannot drift.
+
+Supported subset of the launch YAML format (anything else is an error that
+names the file and the entry, never silently ignored)::
+
+    launch:
+    - arg: {name: use_sim_time, default: 'false', description: '...'}
+    - let: {name: robot, value: 'mecanum'}
+    - set_env: {name: ROS_AUTOMATIC_DISCOVERY_RANGE, value: LOCALHOST}
+    - include:
+        file: $(find-pkg-share mecanum_control)/launch/control.launch.yaml
+        arg: [{name: use_sim_time, value: $(var use_sim_time)}]
+    - node:
+        pkg: robot_controller
+        exec: robot_control_node
+        name: robot_controller            # optional
+        namespace: robot1                 # optional
+        param:                            # in order; later entries win
+        - from: $(find-pkg-share robot_controller)/config/robot_controller.yaml
+        - {name: use_sim_time, value: $(var use_sim_time)}
+        remap: [{from: cmd_vel, to: /cmd_vel}]
+        args: '--extra arguments'         # optional
+        respawn: 'true'                   # optional
+        respawn_delay: '2.0'              # optional, seconds
+        on_exit: shutdown                 # optional: stop the whole system when it exits
+        output: screen                    # accepted; output is always shown
+        env: [{name: FOO, value: bar}]    # optional
+
+Substitutions: ``$(var NAME)``, ``$(find-pkg-share PKG)``,
+``$(env NAME [DEFAULT])``, ``$(dirname)`` (the launch file's folder).
+This module does not import rclpy or launch.
+"""
+
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+import re
+import shlex
+from typing import Callable, Dict, List, Optional, Tuple
+
+import yaml
+
+_SUBSTITUTION = re.compile(r'\$\(([a-z-]+)((?:\s+[^()\s]+)*)\s*\)')
+_NODE_KEYS = {'pkg', 'exec', 'name', 'namespace', 'param', 'remap', 'args', 'ros_args',
+              'respawn', 'respawn_delay', 'on_exit', 'output', 'env'}
+
+
+class SystemDescriptionError(ValueError):
+    """A system description (launch YAML file) is malformed or refers to missing things."""
+
+
+@dataclass
+class NodeProcess:
+    """One node of a system, resolved to the command line that starts it.
+
+    ``parameters`` keeps the launch order of parameter sources: a ``Path`` is a
+    parameter file, a ``(name, value)`` tuple a single parameter override.
+    ``env`` holds the variables set for this node (set_env entries in force where
+    it is declared, then its own env entries).
+    """
+
+    package: str
+    executable: str
+    name: Optional[str] = None
+    namespace: Optional[str] = None
+    parameters: List[object] = field(default_factory=list)
+    remappings: List[Tuple[str, str]] = field(default_factory=list)
+    arguments: List[str] = field(default_factory=list)
+    ros_arguments: List[str] = field(default_factory=list)
+    env: Dict[str, str] = field(default_factory=dict)
+    respawn: bool = False
+    respawn_delay_s: float = 0.0
+    shutdown_on_exit: bool = False
+
+    @property
+    def label(self) -> str:
+        """Name used to prefix the node's output: its node name, else its executable."""
+        return self.name or self.executable
+
+    def ros_args(self) -> List[str]:
+        """Return the ``--ros-args`` part of the command line, as launch_ros builds it."""
+        args: List[str] = []
+        if self.name:
+            args += ['-r', f'__node:={self.name}']
+        if self.namespace:
+            args += ['-r', f'__ns:={normalize_namespace(self.namespace)}']
+        for source in self.parameters:
+            if isinstance(source, Path):
+                args += ['--params-file', str(source)]
+            else:
+                name, value = source
+                args += ['-p', f'{name}:={yaml_scalar(value)}']
+        for remap_from, remap_to in self.remappings:
+            args += ['-r', f'{remap_from}:={remap_to}']
+        args += self.ros_arguments
+        return ['--ros-args', *args] if args else []
+
+
+@dataclass
+class System:
+    """A resolved system: its nodes, its launch arguments, and the files read."""
+
+    nodes: List[NodeProcess] = field(default_factory=list)
+    files: List[Path] = field(default_factory=list)
+    # Every declared launch argument and the value it took.
+    arguments: Dict[str, str] = field(default_factory=dict)
+
+
+def normalize_namespace(namespace: str) -> str:
+    """Return a namespace with exactly one leading slash and no trailing slash."""
+    stripped = namespace.strip('/')
+    return '/' + stripped if stripped else '/'
+
+
+def yaml_scalar(value: object) -> str:
+    """Encode a parameter value the way rcl parses ``-p name:=value`` (YAML)."""
+    text = yaml.safe_dump(value, default_flow_style=True, width=1 << 30).strip()
+    # A plain scalar is dumped as a document ("x\n..."); drop the end marker.
+    if text.endswith('\n...'):
+        text = text[:-len('\n...')]
+    return text
+
+
+def parse_bool(text: object, where: str) -> bool:
+    """Parse a launch boolean ('true'/'false', any case) or raise with context."""
+    lowered = str(text).strip().lower()
+    if lowered in ('true', '1', 'yes'):
+        return True
+    if lowered in ('false', '0', 'no'):
+        return False
+    raise SystemDescriptionError(f'{where}: expected true or false, got {text!r}')
+
+
+def parse_launch_arguments(argv: List[str]) -> Dict[str, str]:
+    """Parse ``name:=value`` command line arguments, as ``ros2 launch`` takes them."""
+    arguments = {}
+    for item in argv:
+        name, sep, value = item.partition(':=')
+        if not sep or not name or not re.fullmatch(r'[A-Za-z_][A-Za-z0-9_]*', name):
+            raise SystemDescriptionError(
+                f'launch argument {item!r} is not of the form name:=value')
+        arguments[name] = value
+    return arguments
+
+
+class _Resolver:
+    """Resolves substitutions and entities of launch YAML files into a System."""
+
+    def __init__(self, find_package_share: Callable[[str], str], environ: Dict[str, str]):
+        self._find_package_share = find_package_share
+        self._environ = environ
+        # Variables set by set_env entries in force at this point of the files.
+        self._set_env: Dict[str, str] = {}
+        self.system = System()
+
+    def substitute(self, value: object, scope: Dict[str, str], where: str,
+                   launch_dir: Path) -> str:
+        """Return value with every ``$(...)`` substitution performed."""
+        text = str(value)
+
+        def replace(match: 're.Match') -> str:
+            kind, rest = match.group(1), match.group(2).split()
+            if kind == 'var' and len(rest) == 1:
+                if rest[0] not in scope:
+                    raise SystemDescriptionError(
+                        f'{where}: $(var {rest[0]}) is not a declared launch argument '
+                        f'(known: {", ".join(sorted(scope)) or "none"})')
+                return scope[rest[0]]
+            if kind == 'find-pkg-share' and len(rest) == 1:
+                try:
+                    return self._find_package_share(rest[0])
+                except LookupError as error:
+                    raise SystemDescriptionError(
+                        f'{where}: package {rest[0]!r} not found ({error}); is the workspace '
+                        'built and sourced?') from None
+            if kind == 'env' and len(rest) in (1, 2):
+                if rest[0] in self._environ:
+                    return self._environ[rest[0]]
+                if len(rest) == 2:
+                    return rest[1]
+                raise SystemDescriptionError(
+                    f'{where}: environment variable {rest[0]} is not set and has no default')
+            if kind == 'dirname' and not rest:
+                return str(launch_dir)
+            raise SystemDescriptionError(f'{where}: unsupported substitution {match.group(0)!r}')
+
+        return _SUBSTITUTION.sub(replace, text)
+
+    def load(self, path: Path, inherited: Dict[str, str]) -> None:
+        """Read one launch file.
+
+        ``inherited`` holds the launch configurations visible to it: as in ROS 2
+        launch, command line arguments and the including file's configurations
+        flow into included files, and an include's ``arg`` entries add to them.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise SystemDescriptionError(f'launch file {path} does not exist')
+        if path in self.system.files:
+            raise SystemDescriptionError(f'{path}: included recursively')
+        self.system.files.append(path)
+        try:
+            document = yaml.safe_load(path.read_text())
+        except yaml.YAMLError as error:
+            raise SystemDescriptionError(f'{path}: not valid YAML: {error}') from None
+        if not isinstance(document, dict) or set(document) != {'launch'} \
+                or not isinstance(document['launch'], list):
+            raise SystemDescriptionError(
+                f'{path}: a launch YAML file must be a mapping with one key, "launch", '
+                'holding a list of entries')
+        scope = dict(inherited)
+        # As in ROS 2 launch, an included file's set_env does not leak out of it.
+        saved_environ, saved_set_env = self._environ, self._set_env
+        self._load_entries(path, document['launch'], scope)
+        self._environ, self._set_env = saved_environ, saved_set_env
+
+    def _load_entries(self, path: Path, entries: list, scope: Dict[str, str]) -> None:
+        for index, entry in enumerate(entries):
+            where = f'{path.name}: entry {index + 1}'
+            if not isinstance(entry, dict) or len(entry) != 1:
+                raise SystemDescriptionError(
+                    f'{where}: each entry must be a mapping with exactly one key '
+                    '(arg, let, set_env, include or node)')
+            (kind, body), = entry.items()
+            if not isinstance(body, dict):
+                raise SystemDescriptionError(f'{where}: "{kind}" must hold a mapping')
+            where = f'{where} ({kind})'
+            if kind == 'arg':
+                self._declare_argument(body, scope, where, path.parent)
+            elif kind == 'let':
+                name = str(self._required(body, 'name', where))
+                scope[name] = self.substitute(self._required(body, 'value', where), scope,
+                                              where, path.parent)
+            elif kind == 'set_env':
+                name = str(self._required(body, 'name', where))
+                value = self.substitute(self._required(body, 'value', where), scope, where,
+                                        path.parent)
+                self._set_env = dict(self._set_env, **{name: value})
+                self._environ = dict(self._environ, **{name: value})
+            elif kind == 'include':
+                self._include(body, scope, where, path.parent)
+            elif kind == 'node':
+                self.system.nodes.append(self._node(body, scope, where, path.parent))
+            else:
+                raise SystemDescriptionError(
+                    f'{where}: unsupported entry "{kind}" (supported: arg, let, set_env, '
+                    'include, node)')
+
+    @staticmethod
+    def _required(body: dict, key: str, where: str) -> object:
+        if key not in body or body[key] is None:
+            raise SystemDescriptionError(f'{where}: missing "{key}"')
+        return body[key]
+
+    def _declare_argument(self, body: dict, scope: Dict[str, str], where: str,
+                          launch_dir: Path) -> None:
+        name = str(self._required(body, 'name', where))
+        unknown = set(body) - {'name', 'default', 'description', 'choices'}
+        if unknown:
+            raise SystemDescriptionError(f'{where}: unknown key(s) {sorted(unknown)}')
+        if name not in scope:
+            if 'default' not in body:
+                raise SystemDescriptionError(
+                    f'{where}: launch argument "{name}" has no default and was not given '
+                    f'(pass {name}:=VALUE)')
+            scope[name] = self.substitute(body['default'], scope, where, launch_dir)
+        choices = body.get('choices')
+        if choices is not None and scope[name] not in [str(c) for c in choices]:
+            raise SystemDescriptionError(
+                f'{where}: launch argument {name}:={scope[name]!r} is not one of {choices}')
+        self.system.arguments.setdefault(name, scope[name])
+
+    def _include(self, body: dict, scope: Dict[str, str], where: str, launch_dir: Path):
+        file_name = self.substitute(self._required(body, 'file', where), scope, where,
+                                    launch_dir)
+        included_path = Path(file_name)
+        if not included_path.is_absolute():
+            included_path = launch_dir / included_path
+        passed = dict(scope)
+        for item in body.get('arg') or []:
+            if not isinstance(item, dict) or 'name' not in item or 'value' not in item:
+                raise SystemDescriptionError(f'{where}: each include arg needs name and value')
+            passed[str(item['name'])] = self.substitute(item['value'], scope, where, launch_dir)
+        if included_path.name.endswith('.launch.py'):
+            included_path = included_path.with_name(
+                included_path.name[:-len('.launch.py')] + '.launch.yaml')
+        self.load(included_path, passed)
+
+    def _node(self, body: dict, scope: Dict[str, str], where: str,
+              launch_dir: Path) -> NodeProcess:
+        unknown = set(body) - _NODE_KEYS
+        if unknown:
+            raise SystemDescriptionError(
+                f'{where}: unknown key(s) {sorted(unknown)}; supported: {sorted(_NODE_KEYS)}')
+
+        def sub(value: object) -> str:
+            return self.substitute(value, scope, where, launch_dir)
+
+        node = NodeProcess(package=sub(self._required(body, 'pkg', where)),
+                           executable=sub(self._required(body, 'exec', where)),
+                           env=dict(self._set_env))
+        where = f'{where} {node.package}/{node.executable}'
+        if body.get('name'):
+            node.name = sub(body['name'])
+        if body.get('namespace'):
+            node.namespace = sub(body['namespace'])
+        for item in body.get('param') or []:
+            node.parameters.append(self._parameter(item, sub, where))
+        for item in body.get('remap') or []:
+            if not isinstance(item, dict) or set(item) != {'from', 'to'}:
+                raise SystemDescriptionError(f'{where}: each remap needs exactly from and to')
+            node.remappings.append((sub(item['from']), sub(item['to'])))
+        for item in body.get('env') or []:
+            if not isinstance(item, dict) or set(item) != {'name', 'value'}:
+                raise SystemDescriptionError(f'{where}: each env entry needs name and value')
+            node.env[sub(item['name'])] = sub(item['value'])
+        node.arguments = shlex.split(sub(body.get('args', '')))
+        node.ros_arguments = shlex.split(sub(body.get('ros_args', '')))
+        node.respawn = parse_bool(sub(body.get('respawn', 'false')), f'{where}: respawn')
+        try:
+            node.respawn_delay_s = float(sub(body.get('respawn_delay', '0.0')))
+        except ValueError:
+            raise SystemDescriptionError(f'{where}: respawn_delay must be a number') from None
+        if not node.respawn_delay_s >= 0.0:
+            raise SystemDescriptionError(f'{where}: respawn_delay must be >= 0')
+        on_exit = sub(body.get('on_exit', '')).strip()
+        if on_exit not in ('', 'shutdown'):
+            raise SystemDescriptionError(f'{where}: on_exit supports only "shutdown"')
+        node.shutdown_on_exit = on_exit == 'shutdown'
+        return node
+
+    @staticmethod
+    def _parameter(item: object, sub: Callable[[object], str], where: str) -> object:
+        if isinstance(item, dict) and set(item) == {'from'}:
+            path = Path(sub(item['from']))
+            if not path.is_file():
+                raise SystemDescriptionError(f'{where}: parameter file {path} does not exist')
+            try:
+                content = yaml.safe_load(path.read_text())
+            except yaml.YAMLError as error:
+                raise SystemDescriptionError(
+                    f'{where}: parameter file {path} is not valid YAML: {error}') from None
+            if not isinstance(content, dict):
+                raise SystemDescriptionError(
+                    f'{where}: parameter file {path} must map node names to ros__parameters')
+            return path
+        if isinstance(item, dict) and set(item) == {'name', 'value'}:
+            value = item['value']
+            if isinstance(value, str):
+                # As launch_ros does: evaluate substitutions, then read the text as YAML.
+                text = sub(value)
+                try:
+                    value = yaml.safe_load(text) if text.strip() else text
+                except yaml.YAMLError:
+                    value = text
+            return (str(item['name']), value)
+        raise SystemDescriptionError(
+            f'{where}: each param entry is either {{from: FILE}} or {{name: N, value: V}}')
+
+
+def default_find_package_share(package: str) -> str:
+    """Find a package's share directory through the ament index."""
+    from ament_index_python.packages import get_package_share_directory
+    from ament_index_python.packages import PackageNotFoundError
+    try:
+        return get_package_share_directory(package)
+    except PackageNotFoundError as error:
+        raise LookupError(str(error)) from None
+
+
+def load_system(path: Path, arguments: Optional[Dict[str, str]] = None,
+                find_package_share: Callable[[str], str] = default_find_package_share,
+                environ: Optional[Dict[str, str]] = None) -> System:
+    """Read a system description and everything it includes into a System.
+
+    ``path`` may name the ``.launch.py`` wrapper; its ``.launch.yaml`` is read.
+    Raises SystemDescriptionError with a message naming the file and entry.
+    """
+    path = Path(path)
+    if path.name.endswith('.launch.py'):
+        path = path.with_name(path.name[:-len('.launch.py')] + '.launch.yaml')
+    resolver = _Resolver(find_package_share, dict(os.environ if environ is None else environ))
+    arguments = dict(arguments or {})
+    resolver.load(path, arguments)
+    undeclared = sorted(set(arguments) - set(resolver.system.arguments))
+    if undeclared:
+        raise SystemDescriptionError(
+            f'{path.name}: unknown launch argument(s) {", ".join(undeclared)}; declared: '
+            f'{", ".join(sorted(resolver.system.arguments)) or "none"}')
+    if not resolver.system.nodes:
+        raise SystemDescriptionError(f'{path}: the system has no nodes')
+    return resolver.system

@@ -1,0 +1,1 @@
+"""Motor control of the mecanum robot."""

@@ -1,0 +1,1 @@
+"""Robot model of the mecanum robot."""

@@ -1,0 +1,138 @@
+"""robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel``.
+
+Subscribes ``control_command`` (std_msgs/String), e.g. "forward 0.5 m",
+"strafe left 2 s", "rotate right 90 deg", "stop" (grammar in
+:mod:`robot_controller.command_parser`). Publishes ``cmd_vel``
+(geometry_msgs/Twist, base_link frame, m/s and rad/s) at ``publish_rate_hz``
+while a motion lasts, then one zero twist; and ``control_status``
+(std_msgs/String): ``accepted: <command>``, ``done: <motion>`` (finished, or
+``done: stop``), ``interrupted: <motion>`` (replaced or stopped before its end)
+and ``rejected: <reason>``. A new command replaces the running one; a rejected
+command never moves the robot (the running motion, if any, is stopped).
+"""
+
+import signal
+
+from geometry_msgs.msg import Twist
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from robot_controller.command_parser import CommandError, CommandLimits, Motion, parse_command
+from std_msgs.msg import String
+
+
+class RobotController(Node):
+    """Turns text commands into timed velocity commands."""
+
+    def __init__(self):
+        super().__init__('robot_controller')
+        defaults = CommandLimits()
+        self.limits = CommandLimits(
+            linear_speed_mps=self.declare_parameter(
+                'linear_speed_mps', defaults.linear_speed_mps).value,
+            angular_speed_radps=self.declare_parameter(
+                'angular_speed_radps', defaults.angular_speed_radps).value,
+            max_linear_speed_mps=self.declare_parameter(
+                'max_linear_speed_mps', defaults.max_linear_speed_mps).value,
+            max_angular_speed_radps=self.declare_parameter(
+                'max_angular_speed_radps', defaults.max_angular_speed_radps).value,
+            default_duration_s=self.declare_parameter(
+                'default_duration_s', defaults.default_duration_s).value,
+            max_duration_s=self.declare_parameter(
+                'max_duration_s', defaults.max_duration_s).value)
+        publish_rate_hz = self.declare_parameter('publish_rate_hz', 20.0).value
+        if not publish_rate_hz > 0.0:
+            raise ValueError(f'publish_rate_hz must be positive, got {publish_rate_hz}')
+
+        self.motion = None
+        self.motion_end = None
+
+        self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self.status_pub = self.create_publisher(String, 'control_status', 10)
+        self.command_sub = self.create_subscription(
+            String, 'control_command', self.on_command, 10)
+        self.timer = self.create_timer(1.0 / publish_rate_hz, self.on_timer)
+        self.get_logger().info('Robot controller ready; send text commands on control_command')
+
+    def on_command(self, msg: String) -> None:
+        """Parse a command and start (or stop) the motion it describes."""
+        text = msg.data.strip()
+        try:
+            motion = parse_command(text, self.limits)
+        except CommandError as error:
+            self.get_logger().warning(f'Rejected command {text!r}: {error}')
+            self.interrupt()
+            self.report(f'rejected: {error}')
+            return
+        self.interrupt()
+        if motion.is_stop:
+            self.finish('done: stop')
+            return
+        self.motion = motion
+        self.motion_end = self.get_clock().now() + Duration(seconds=motion.duration_s)
+        self.get_logger().info(
+            f'Executing {text!r}: vx={motion.vx:.3f} m/s vy={motion.vy:.3f} m/s '
+            f'wz={motion.wz:.3f} rad/s for {motion.duration_s:.2f} s')
+        self.report(f'accepted: {text}')
+        self.publish_twist(motion)
+
+    def on_timer(self) -> None:
+        """Keep publishing the running motion, and end it when its time is up."""
+        if self.motion is None:
+            return
+        if self.get_clock().now() >= self.motion_end:
+            self.finish(f'done: {self.motion.name}')
+        else:
+            self.publish_twist(self.motion)
+
+    def interrupt(self) -> None:
+        """End the running motion early, if there is one."""
+        if self.motion is not None:
+            self.finish(f'interrupted: {self.motion.name}')
+
+    def finish(self, status: str) -> None:
+        """Stop the robot and report status."""
+        self.motion = None
+        self.motion_end = None
+        self.cmd_vel_pub.publish(Twist())
+        self.report(status)
+
+    def publish_twist(self, motion: Motion) -> None:
+        """Publish the motion's body twist on cmd_vel."""
+        twist = Twist()
+        twist.linear.x = motion.vx
+        twist.linear.y = motion.vy
+        twist.angular.z = motion.wz
+        self.cmd_vel_pub.publish(twist)
+
+    def report(self, status: str) -> None:
+        """Publish a status line on control_status."""
+        self.status_pub.publish(String(data=status))
+
+
+def _raise_keyboard_interrupt(_signum, _frame):
+    raise KeyboardInterrupt
+
+
+def main(args=None):
+    """Run the robot_controller node until Ctrl-C or SIGTERM, then stop the robot."""
+    # rclpy's own handler would shut the context down before we could send the
+    # final zero twist; handle SIGINT/SIGTERM here instead.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    node = RobotController()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if rclpy.ok():
+            node.cmd_vel_pub.publish(Twist())
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

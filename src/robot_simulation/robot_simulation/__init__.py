@@ -1,0 +1,1 @@
+"""Simulated mecanum robot and world for safe, isolated testing."""
