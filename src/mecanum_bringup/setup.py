@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Bringup of the mecanum robot: system descriptions (launch files) for the simulated and the real robot, and a process runner for setups without ros2 launch.',
+    description=(
+        'Bringup of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

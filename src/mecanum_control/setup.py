@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Motor control of the mecanum robot: kinematics, motor controller, PID velocity control, encoder odometry and the ESP32 serial link.',
+    description=(
+        'Motor control of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={},

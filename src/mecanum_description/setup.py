@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Robot model of the mecanum robot: the one robot configuration (geometry, limits) every other package reads, URDF/xacro and meshes.',
+    description=(
+        'Robot model of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={},

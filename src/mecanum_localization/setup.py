@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Localization of the mecanum robot: an EKF fusing wheel odometry and IMU, with robot_localization-style configuration.',
+    description=(
+        'Localization of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={},

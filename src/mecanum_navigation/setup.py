@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Navigation of the mecanum robot: maps, costmaps, holonomic planning and control, SLAM.',
+    description=(
+        'Navigation of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={},

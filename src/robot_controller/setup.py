@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Text commands ("forward 0.5 m", "strafe left 2 s", "rotate left 90 deg") to velocity commands on cmd_vel.',
+    description=(
+        'Text commands ("forward 0.5 m", "strafe left 2 s") to velocity commands on cmd_vel'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -29,7 +29,8 @@ setup(
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
-    description='Simulated mecanum robot and world for safe, isolated testing.',
+    description=(
+        'Simulated mecanum robot and world for safe, isolated testing'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -1,4 +1,4 @@
-"""Launch the demo (apt ROS 2: ``ros2 launch``); the system itself is in demo.launch.yaml."""
+"""Launch the demo with ros2 launch; the system itself is demo.launch.yaml."""
 
 import os
 

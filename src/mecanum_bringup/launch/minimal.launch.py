@@ -1,4 +1,4 @@
-"""Launch the minimal system (apt ROS 2: ``ros2 launch``); the system itself is in minimal.launch.yaml."""
+"""Launch the minimal system with ros2 launch; the system itself is minimal.launch.yaml."""
 
 import os
 

@@ -1,4 +1,5 @@
-"""Keep ROS 2 systems of this workspace from seeing each other or the network.
+"""
+Keep ROS 2 systems of this workspace from seeing each other or the network.
 
 Two mechanisms, both standard ROS 2 Jazzy environment variables:
 
@@ -45,7 +46,8 @@ class DomainLease:
 
 
 def lease_domain_id(rng: Optional[random.Random] = None) -> DomainLease:
-    """Claim a ROS_DOMAIN_ID no other process on this machine has claimed.
+    """
+    Claim a ROS_DOMAIN_ID no other process on this machine has claimed.
 
     Raises RuntimeError when every leasable domain is taken.
     """

@@ -1,4 +1,5 @@
-"""Run a system description without ``ros2 launch``: the pip-setup launcher.
+"""
+Run a system description without ``ros2 launch``: the pip-setup launcher.
 
 Usage (``./mecanum launch`` wraps this)::
 
@@ -32,6 +33,9 @@ from mecanum_bringup.system_description import (
     SystemDescriptionError)
 
 _PR_SET_PDEATHSIG = 1
+# Loaded here, not in the forked child: dynamic loading between fork and exec can
+# deadlock when other threads (the output readers) held the loader lock.
+_LIBC = ctypes.CDLL(None, use_errno=True)
 
 
 def find_executable(package: str, executable: str, environ: Mapping[str, str]) -> Path:
@@ -49,8 +53,7 @@ def find_executable(package: str, executable: str, environ: Mapping[str, str]) -
 
 def _die_with_parent() -> None:
     """In the child, before exec: get SIGTERM if the runner dies, however it dies."""
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
 class ManagedNode:
@@ -111,8 +114,9 @@ class Supervisor:
             stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent)
         node.starts += 1
         node.restart_at = None
-        verb = 'started' if node.starts == 1 else f'restarted (start {node.starts})'
-        self.say('runner', f'{verb} {node.spec.label} (pid {node.process.pid}): '
+        verb = 'started' if node.starts == 1 else 'restarted'
+        count = '' if node.starts == 1 else f'start {node.starts}, '
+        self.say('runner', f'{verb} {node.spec.label} ({count}pid {node.process.pid}): '
                            f'{node.spec.package}/{node.spec.executable}')
         node.reader = threading.Thread(target=self._forward_output, args=(node, node.process),
                                        daemon=True)

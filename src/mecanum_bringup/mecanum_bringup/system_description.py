@@ -1,4 +1,5 @@
-"""Read a system description: a ROS 2 launch file in the YAML frontend format.
+"""
+Read a system description: a ROS 2 launch file in the YAML frontend format.
 
 A system (which nodes run, from which package and executable, with which
 parameter files, remappings, namespace and respawn policy) is written once as a
@@ -58,7 +59,8 @@ class SystemDescriptionError(ValueError):
 
 @dataclass
 class NodeProcess:
-    """One node of a system, resolved to the command line that starts it.
+    """
+    One node of a system, resolved to the command line that starts it.
 
     ``parameters`` keeps the launch order of parameter sources: a ``Path`` is a
     parameter file, a ``(name, value)`` tuple a single parameter override.
@@ -194,7 +196,8 @@ class _Resolver:
         return _SUBSTITUTION.sub(replace, text)
 
     def load(self, path: Path, inherited: Dict[str, str]) -> None:
-        """Read one launch file.
+        """
+        Read one launch file.
 
         ``inherited`` holds the launch configurations visible to it: as in ROS 2
         launch, command line arguments and the including file's configurations
@@ -378,7 +381,8 @@ def default_find_package_share(package: str) -> str:
 def load_system(path: Path, arguments: Optional[Dict[str, str]] = None,
                 find_package_share: Callable[[str], str] = default_find_package_share,
                 environ: Optional[Dict[str, str]] = None) -> System:
-    """Read a system description and everything it includes into a System.
+    """
+    Read a system description and everything it includes into a System.
 
     ``path`` may name the ``.launch.py`` wrapper; its ``.launch.yaml`` is read.
     Raises SystemDescriptionError with a message naming the file and entry.

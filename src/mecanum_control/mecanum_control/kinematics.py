@@ -1,4 +1,5 @@
-"""Mecanum wheel kinematics and planar odometry (pure functions, no ROS).
+"""
+Mecanum wheel kinematics and planar odometry (pure functions, no ROS).
 
 Conventions (REP-103): body frame base_link, x forward, y left, z up; twists are
 (vx m/s, vy m/s, wz rad/s). Wheel order is always FL, FR, RL, RR; wheel speeds
@@ -50,7 +51,8 @@ def inverse_kinematics(geometry: MecanumGeometry, vx: float, vy: float,
 
 
 def forward_kinematics(geometry: MecanumGeometry, wheel_speeds: Sequence[float]) -> Twist2D:
-    """Wheel angular velocities FL, FR, RL, RR (rad/s) to the least-squares body twist.
+    """
+    Wheel angular velocities FL, FR, RL, RR (rad/s) to the least-squares body twist.
 
     The inverse kinematics matrix has orthogonal columns, so its pseudo-inverse
     is a scaled transpose: inconsistent wheel speeds (slip) are averaged out.
@@ -64,7 +66,8 @@ def forward_kinematics(geometry: MecanumGeometry, wheel_speeds: Sequence[float])
 
 
 def desaturate(wheel_speeds: Sequence[float], max_wheel_speed: float) -> WheelSpeeds:
-    """Scale all wheel speeds by one factor so none exceeds max_wheel_speed.
+    """
+    Scale all wheel speeds by one factor so none exceeds max_wheel_speed.
 
     Scaling them together keeps the direction of the body twist (and the ratio
     of translation to rotation); clipping wheels one by one would not.
@@ -79,7 +82,8 @@ def desaturate(wheel_speeds: Sequence[float], max_wheel_speed: float) -> WheelSp
 
 def integrate_pose(x: float, y: float, yaw: float, vx: float, vy: float, wz: float,
                    dt: float) -> Tuple[float, float, float]:
-    """Advance a planar pose by a body twist held constant for dt seconds.
+    """
+    Advance a planar pose by a body twist held constant for dt seconds.
 
     Exact for a constant twist (the robot moves on a circular arc), not a
     first-order Euler step; the series forms keep it accurate as wz -> 0.

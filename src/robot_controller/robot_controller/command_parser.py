@@ -1,4 +1,5 @@
-"""Parse text commands into timed body-velocity motions (pure, no ROS).
+"""
+Parse text commands into timed body-velocity motions (pure, no ROS).
 
 Grammar (case-insensitive, words separated by spaces)::
 

@@ -1,13 +1,14 @@
-"""command_script: send a list of text commands to robot_controller, one after another.
+"""
+command_script: send a list of text commands to robot_controller, one after another.
 
 Parameters: ``commands`` (string array, required), ``start_delay_s`` (wait after
 robot_controller is found, default 1.0), ``command_timeout_s`` (longest wait for
 one command to finish, default 90.0). Publishes ``control_command``
 (std_msgs/String); listens to ``control_status`` (std_msgs/String) for
 ``done:``/``rejected:`` and to ``robot_status`` (std_msgs/String) to report
-where the robot got to (the first status received after the command finished). Exits 0 when every command finished, 1 when one was
-rejected or timed out, so launch files can end a system with ``on_exit:
-shutdown``.
+where the robot got to (the first status received after a command finished).
+Exits 0 when every command finished, 1 when one was rejected or timed out, so
+launch files can end a system with ``on_exit: shutdown``.
 """
 
 import sys

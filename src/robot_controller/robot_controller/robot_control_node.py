@@ -1,4 +1,5 @@
-"""robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel``.
+"""
+robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel``.
 
 Subscribes ``control_command`` (std_msgs/String), e.g. "forward 0.5 m",
 "strafe left 2 s", "rotate right 90 deg", "stop" (grammar in

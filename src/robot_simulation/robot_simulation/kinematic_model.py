@@ -1,4 +1,5 @@
-"""Kinematic mecanum base: the pose follows the commanded body twist exactly (pure, no ROS).
+"""
+Kinematic mecanum base: the pose follows the commanded body twist exactly (pure, no ROS).
 
 This is the seed's quick-experiment model (``simulation_node``): no mass, motor
 lag or slip. Commands are body twists (vx, vy m/s; wz rad/s; REP-103) that hold
@@ -45,7 +46,8 @@ class KinematicBase:
         self._command_time_s: Optional[float] = None
 
     def command(self, vx: float, vy: float, wz: float, now_s: float) -> Tuple[float, float, float]:
-        """Set the body twist from now_s on; return it after clamping to the limits.
+        """
+        Set the body twist from now_s on; return it after clamping to the limits.
 
         Raises ValueError for NaN or infinite components (the twist is unchanged).
         """

@@ -1,4 +1,5 @@
-"""simulation_node: the seed's kinematic robot simulation, for quick experiments.
+"""
+simulation_node: the seed's kinematic robot simulation, for quick experiments.
 
 Subscribes ``cmd_vel`` (geometry_msgs/Twist, base_link, m/s and rad/s).
 Publishes ``robot_status`` (std_msgs/String, "Position: x=.., y=.., theta=..",

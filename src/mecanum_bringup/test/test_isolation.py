@@ -1,0 +1,44 @@
+"""Tests of ROS domain leasing across real processes."""
+
+import random
+import subprocess
+import sys
+import textwrap
+
+from mecanum_bringup.isolation import (
+    current_domain_id, isolated_environment, LEASABLE_DOMAIN_IDS, lease_domain_id)
+
+
+def test_leases_in_one_process_differ_and_are_released():
+    with lease_domain_id(random.Random(1)) as first, lease_domain_id(random.Random(1)) as second:
+        assert first.domain_id != second.domain_id
+        assert first.domain_id in LEASABLE_DOMAIN_IDS and second.domain_id in LEASABLE_DOMAIN_IDS
+        taken = first.domain_id
+    # Released: the same random order hands out the same domain again.
+    with lease_domain_id(random.Random(1)) as again:
+        assert again.domain_id == taken
+
+
+def test_domain_held_by_another_process_is_not_handed_out():
+    holder = subprocess.Popen([sys.executable, '-c', textwrap.dedent("""
+        import random, sys, time
+        from mecanum_bringup.isolation import lease_domain_id
+        lease = lease_domain_id(random.Random(7))
+        print(lease.domain_id, flush=True)
+        sys.stdin.read()
+        """)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        held = int(holder.stdout.readline())
+        with lease_domain_id(random.Random(7)) as mine:
+            assert mine.domain_id != held
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=10)
+
+
+def test_isolated_environment_defaults_to_localhost_but_respects_user_choice():
+    expected = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'ROS_DOMAIN_ID': '42'}
+    assert isolated_environment({}, 42) == expected
+    user = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET', 'ROS_DOMAIN_ID': '3'}
+    assert isolated_environment(user) == user
+    assert current_domain_id(user) == 3 and current_domain_id({}) == 0

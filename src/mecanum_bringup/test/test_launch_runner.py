@@ -1,0 +1,160 @@
+"""Tests of the process supervisor with real processes (plain scripts, no ROS)."""
+
+import io
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+
+from mecanum_bringup.launch_runner import find_executable, Supervisor
+from mecanum_bringup.system_description import NodeProcess, System
+import pytest
+
+
+def make_executable(prefix: Path, package: str, name: str, script: str) -> None:
+    path = prefix / 'lib' / package / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text('#!/bin/bash\n' + textwrap.dedent(script))
+    path.chmod(0o755)
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f'/proc/{pid}/stat') as stat:
+        return stat.read().split()[2] != 'Z'
+
+
+@pytest.fixture
+def prefix(tmp_path):
+    make_executable(tmp_path, 'demo', 'talker', """
+        echo "talker args: $*"
+        while true; do sleep 0.05; done
+        """)
+    make_executable(tmp_path, 'demo', 'quitter', """
+        echo "quitting with 3"; exit 3
+        """)
+    make_executable(tmp_path, 'demo', 'stubborn', """
+        trap 'echo ignoring SIGINT' INT
+        sleep 1000 &
+        echo "child $!"
+        while true; do sleep 0.05; done
+        """)
+    return tmp_path
+
+
+def environ(prefix):
+    return dict(os.environ, AMENT_PREFIX_PATH=str(prefix))
+
+
+def run_in_thread(supervisor):
+    """Run the supervisor in a daemon thread, so a failing test cannot hang pytest."""
+    result = {}
+    thread = threading.Thread(target=lambda: result.setdefault('code', supervisor.run()),
+                              daemon=True)
+    thread.start()
+    return thread, result
+
+
+def wait_for(predicate, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def test_find_executable(prefix):
+    assert find_executable('demo', 'talker', environ(prefix)) == prefix / 'lib/demo/talker'
+    with pytest.raises(FileNotFoundError, match='not found'):
+        find_executable('demo', 'missing', environ(prefix))
+
+
+def test_output_is_prefixed_and_shutdown_on_exit_returns_code(prefix):
+    out = io.StringIO()
+    system = System(nodes=[
+        NodeProcess('demo', 'talker', name='talker_1', arguments=['--x'],
+                    parameters=[('rate', 5)]),
+        NodeProcess('demo', 'quitter', shutdown_on_exit=True)])
+    supervisor = Supervisor(system, environ(prefix), out=out)
+    code = supervisor.run()
+    text = out.getvalue()
+    assert code == 3
+    assert '[talker_1] talker args: --x --ros-args -r __node:=talker_1 -p rate:=5' in text
+    assert '[quitter] quitting with 3' in text
+    assert 'quitter exited with code 3' in text
+    assert all(node.process is None for node in supervisor.nodes)
+
+
+def test_respawn_restarts_a_dead_node(prefix):
+    out = io.StringIO()
+    system = System(nodes=[NodeProcess('demo', 'talker', respawn=True, respawn_delay_s=0.2)])
+    supervisor = Supervisor(system, environ(prefix), out=out)
+    thread, _ = run_in_thread(supervisor)
+    node = supervisor.nodes[0]
+    try:
+        assert wait_for(lambda: node.process is not None)
+        first_pid = node.process.pid
+        os.kill(first_pid, signal.SIGKILL)
+        assert wait_for(lambda: node.starts == 2 and node.process is not None)
+        assert node.process.pid != first_pid
+    finally:
+        supervisor.request_shutdown('test over')
+        thread.join(timeout=10)
+    assert 'respawning talker in 0.2 s' in out.getvalue()
+    assert 'restarted talker (start 2, pid' in out.getvalue()
+
+
+def test_stop_escalates_and_leaves_no_process(prefix):
+    out = io.StringIO()
+    system = System(nodes=[NodeProcess('demo', 'stubborn'), NodeProcess('demo', 'talker')])
+    supervisor = Supervisor(system, environ(prefix), out=out, sigint_timeout_s=0.5,
+                            sigterm_timeout_s=0.5)
+    thread, result = run_in_thread(supervisor)
+    try:
+        assert wait_for(lambda: '[stubborn] child ' in out.getvalue()), out.getvalue()
+        assert wait_for(lambda: all(n.process is not None for n in supervisor.nodes))
+        pids = [n.process.pid for n in supervisor.nodes]
+        grandchild = int(out.getvalue().split('[stubborn] child ')[1].split()[0])
+    finally:
+        started = time.monotonic()
+        supervisor.request_shutdown('test')
+        thread.join(timeout=10)
+    assert not thread.is_alive()
+    assert time.monotonic() - started < 3.0
+    assert result['code'] == 0
+    assert 'ignoring SIGINT' in out.getvalue()
+    for pid in pids + [grandchild]:
+        assert not alive(pid), f'process {pid} survived shutdown'
+
+
+def test_children_die_with_a_killed_runner(prefix, tmp_path):
+    """SIGKILL the runner itself: PR_SET_PDEATHSIG still takes its nodes down."""
+    launch = tmp_path / 'one.launch.yaml'
+    launch.write_text('launch:\n- node: {pkg: demo, exec: talker, name: t}\n')
+    runner = subprocess.Popen(
+        [sys.executable, '-m', 'mecanum_bringup.launch_runner', str(launch)],
+        env=environ(prefix), stdout=subprocess.PIPE, text=True)
+    line = ''
+    while 'started t (pid' not in line:
+        line = runner.stdout.readline()
+        assert line, 'runner ended before starting the node'
+    node_pid = int(line.split('(pid ')[1].split(')')[0])
+    runner.kill()
+    runner.wait(timeout=10)
+    assert wait_for(lambda: not alive(node_pid), timeout=5.0)
+
+
+def test_runner_cli_reports_bad_files(tmp_path, capsys):
+    from mecanum_bringup.launch_runner import main
+    bad = tmp_path / 'bad.launch.yaml'
+    bad.write_text('launch:\n- node: {pkg: demo}\n')
+    assert main([str(bad)]) == 2
+    assert 'missing "exec"' in capsys.readouterr().err

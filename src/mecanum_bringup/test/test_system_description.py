@@ -1,0 +1,171 @@
+"""Tests of the launch YAML reader, on real files in a temporary folder."""
+
+from pathlib import Path
+import textwrap
+
+from mecanum_bringup.system_description import (
+    load_system, parse_launch_arguments, SystemDescriptionError, yaml_scalar)
+import pytest
+
+
+@pytest.fixture
+def packages(tmp_path):
+    """Two package share folders, found through an explicit lookup table."""
+    shares = {name: tmp_path / 'share' / name for name in ('pkg_a', 'pkg_b')}
+    for share in shares.values():
+        (share / 'launch').mkdir(parents=True)
+        (share / 'config').mkdir()
+
+    def find(name):
+        if name not in shares:
+            raise LookupError(f'package {name!r} not found')
+        return str(shares[name])
+    return shares, find
+
+
+def write(path: Path, text: str) -> Path:
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_node_command_line_matches_launch_ros(packages):
+    shares, find = packages
+    params = write(shares['pkg_a'] / 'config' / 'a.yaml', 'node_a:\n  ros__parameters: {k: 1}\n')
+    launch = write(shares['pkg_a'] / 'launch' / 'a.launch.yaml', """
+        launch:
+        - arg: {name: use_sim_time, default: 'false'}
+        - node:
+            pkg: pkg_a
+            exec: exe_a
+            name: node_a
+            namespace: robot1
+            param:
+            - from: $(find-pkg-share pkg_a)/config/a.yaml
+            - {name: use_sim_time, value: $(var use_sim_time)}
+            - {name: speeds, value: [1.5, 2.0]}
+            - {name: label, value: 'two words'}
+            remap: [{from: cmd_vel, to: /robot1/cmd_vel_safe}]
+            respawn: 'True'
+            respawn_delay: '2.5'
+        """)
+    system = load_system(launch, {'use_sim_time': 'true'}, find, environ={})
+    (node,) = system.nodes
+    assert node.ros_args() == [
+        '--ros-args', '-r', '__node:=node_a', '-r', '__ns:=/robot1',
+        '--params-file', str(params), '-p', 'use_sim_time:=true', '-p', 'speeds:=[1.5, 2.0]',
+        '-p', 'label:=two words', '-r', 'cmd_vel:=/robot1/cmd_vel_safe']
+    assert node.respawn and node.respawn_delay_s == 2.5 and not node.shutdown_on_exit
+    assert system.arguments == {'use_sim_time': 'true'}
+
+
+def test_include_passes_arguments_and_scopes_set_env(packages):
+    shares, find = packages
+    write(shares['pkg_b'] / 'launch' / 'inner.launch.yaml', """
+        launch:
+        - arg: {name: robot, default: 'default_robot'}
+        - arg: {name: world, default: 'lab'}
+        - set_env: {name: INNER_ONLY, value: '1'}
+        - node: {pkg: pkg_b, exec: sim, name: $(var robot)_sim, args: '--world $(var world)'}
+        """)
+    outer = write(shares['pkg_a'] / 'launch' / 'outer.launch.yaml', """
+        launch:
+        - arg: {name: robot_name, default: 'r2'}
+        - set_env: {name: RANGE, value: $(env RANGE LOCALHOST)}
+        - include:
+            file: $(find-pkg-share pkg_b)/launch/inner.launch.py
+            arg: [{name: robot, value: $(var robot_name)}]
+        - node: {pkg: pkg_a, exec: ctl, on_exit: shutdown}
+        """)
+    # world is declared only by the included file, yet settable from the command
+    # line, as in ros2 launch.
+    system = load_system(outer, {'world': 'apartment'}, find, environ={})
+    sim, ctl = system.nodes
+    assert sim.name == 'r2_sim' and sim.arguments == ['--world', 'apartment']
+    assert sim.env == {'RANGE': 'LOCALHOST', 'INNER_ONLY': '1'}
+    assert ctl.env == {'RANGE': 'LOCALHOST'}           # the include's set_env stayed inside
+    assert ctl.shutdown_on_exit and ctl.label == 'ctl'
+    assert system.arguments == {'robot_name': 'r2', 'robot': 'r2', 'world': 'apartment'}
+
+
+@pytest.mark.parametrize('body, message', [
+    ('launch: {node: {}}', 'holding a list'),
+    ('launch:\n- node: {pkg: pkg_a}', 'missing "exec"'),
+    ('launch:\n- group: {}', 'unsupported entry "group"'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, colour: red}', "unknown key(s) ['colour']"),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(var nope)}', 'not a declared'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(find-pkg-share pkg_z)}', 'pkg_z'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, param: [{from: /no/such.yaml}]}',
+     'does not exist'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn: maybe}', 'expected true or false'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: soon}', 'must be a number'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: "-1"}', 'must be >= 0'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, on_exit: restart}', 'only "shutdown"'),
+    ('launch:\n- arg: {name: a}\n- node: {pkg: pkg_a, exec: x}', 'has no default'),
+    ('launch:\n- arg: {name: a, default: x, choices: [y, z]}\n- node: {pkg: p, exec: x}',
+     'not one of'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(unknown thing)}', 'unsupported'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(env NOT_SET_ANYWHERE)}', 'not set'),
+    ('launch: [', 'not valid YAML'),
+    ('launch: []', 'has no nodes'),
+    ('launch:\n- include: {file: /no/such.launch.yaml}', 'does not exist'),
+])
+def test_bad_files_get_clear_errors(packages, tmp_path, body, message):
+    _, find = packages
+    path = write(tmp_path / 'bad.launch.yaml', body + '\n')
+    with pytest.raises(SystemDescriptionError) as error:
+        load_system(path, {}, find, environ={})
+    assert message in str(error.value)
+    assert 'bad.launch.yaml' in str(error.value) or '/no/such' in str(error.value)
+
+
+def test_unknown_command_line_argument_is_an_error(packages, tmp_path):
+    _, find = packages
+    path = write(tmp_path / 'x.launch.yaml', """
+        launch:
+        - arg: {name: a, default: '1'}
+        - node: {pkg: pkg_a, exec: x}
+        """)
+    with pytest.raises(SystemDescriptionError, match='unknown launch argument'):
+        load_system(path, {'b': '2'}, find, environ={})
+
+
+def test_bad_parameter_file_is_reported(packages, tmp_path):
+    _, find = packages
+    write(tmp_path / 'p.yaml', 'just a string\n')
+    path = write(tmp_path / 'x.launch.yaml', """
+        launch:
+        - node: {pkg: pkg_a, exec: x, param: [{from: $(dirname)/p.yaml}]}
+        """)
+    with pytest.raises(SystemDescriptionError, match='must map node names'):
+        load_system(path, {}, find, environ={})
+
+
+def test_recursive_include_is_reported(tmp_path):
+    path = write(tmp_path / 'loop.launch.yaml', """
+        launch:
+        - include: {file: $(dirname)/loop.launch.yaml}
+        """)
+    with pytest.raises(SystemDescriptionError, match='recursively'):
+        load_system(path, {}, lambda name: '', environ={})
+
+
+@pytest.mark.parametrize('argv, expected', [
+    ([], {}),
+    (['a:=1', 'b_2:=x:=y', 'c:='], {'a': '1', 'b_2': 'x:=y', 'c': ''}),
+])
+def test_parse_launch_arguments(argv, expected):
+    assert parse_launch_arguments(argv) == expected
+
+
+@pytest.mark.parametrize('bad', ['a=1', ':=1', '1a:=2', 'a b:=1'])
+def test_parse_launch_arguments_rejects(bad):
+    with pytest.raises(SystemDescriptionError):
+        parse_launch_arguments([bad])
+
+
+@pytest.mark.parametrize('value, text', [
+    (True, 'true'), (3, '3'), (0.5, '0.5'), ('x', 'x'), ('a b', 'a b'),
+    ([1, 2], '[1, 2]'), ('true', "'true'"), ('', "''"),
+])
+def test_yaml_scalar(value, text):
+    assert yaml_scalar(value) == text

@@ -1,0 +1,187 @@
+"""Fixtures for integration tests: real nodes, real processes, real DDS, isolated.
+
+Every test gets its own ROS_DOMAIN_ID (leased, so parallel runs never meet),
+localhost-only discovery, and drives simulated time by publishing /clock itself.
+"""
+
+import os
+from pathlib import Path
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+
+from mecanum_bringup.isolation import isolated_environment, lease_domain_id
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
+
+REPO = Path(__file__).resolve().parents[1]
+RUN_MARKER = 'MECANUM_TEST_RUN'
+
+
+def processes_with_marker(marker: str) -> list:
+    """PIDs of live processes whose environment carries RUN_MARKER=marker."""
+    needle = f'{RUN_MARKER}={marker}'.encode()
+    found = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if needle in (entry / 'environ').read_bytes().split(b'\0'):
+                state = (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0]
+                if state != 'Z':
+                    found.append(int(entry.name))
+        except (FileNotFoundError, ProcessLookupError, PermissionError):
+            continue
+    return found
+
+
+class RunningSystem:
+    """A launch_runner process running a system description, with its output captured."""
+
+    def __init__(self, launch_args: list, env: dict):
+        self.marker = uuid.uuid4().hex
+        self.lines = []
+        self._lock = threading.Lock()
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'mecanum_bringup.launch_runner', *launch_args],
+            env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            with self._lock:
+                self.lines.append(line.rstrip('\n'))
+
+    def output(self) -> str:
+        with self._lock:
+            return '\n'.join(self.lines)
+
+    def wait_for_line(self, pattern: str, timeout: float = 20.0) -> re.Match:
+        """Wait until an output line matches pattern; return the match."""
+        regex = re.compile(pattern)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                for line in self.lines:
+                    match = regex.search(line)
+                    if match:
+                        return match
+            if self.process.poll() is not None:
+                break
+            time.sleep(0.05)
+        raise AssertionError(f'no output line matched {pattern!r}; output:\n{self.output()}')
+
+    def node_pid(self, label: str, start: int = 1) -> int:
+        """PID of a node from the runner's 'started/restarted LABEL (... pid N)' lines."""
+        if start == 1:
+            pattern = rf'\[runner\] started {re.escape(label)} \(pid (\d+)\)'
+        else:
+            pattern = rf'\[runner\] restarted {re.escape(label)} \(start {start}, pid (\d+)\)'
+        return int(self.wait_for_line(pattern).group(1))
+
+    def stop(self, sig=signal.SIGINT, timeout: float = 15.0) -> int:
+        """Signal the runner as Ctrl-C would and return its exit code."""
+        if self.process.poll() is None:
+            self.process.send_signal(sig)
+        return self.process.wait(timeout=timeout)
+
+    def kill_everything(self):
+        """Last resort after a failed test: nothing of this run may survive."""
+        for pid in processes_with_marker(self.marker) + [self.process.pid]:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+@pytest.fixture(name='processes_with_marker')
+def processes_with_marker_fixture():
+    """The function listing live processes of a RunningSystem (by its marker)."""
+    return processes_with_marker
+
+
+@pytest.fixture
+def ros_env():
+    """An environment with a leased ROS_DOMAIN_ID and localhost-only discovery."""
+    with lease_domain_id() as lease:
+        env = isolated_environment(os.environ, lease.domain_id)
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        yield env
+
+
+@pytest.fixture
+def start_system(ros_env):
+    """Start systems with launch_runner in the test's domain; kill leftovers at the end."""
+    systems = []
+
+    def start(*launch_args: str) -> RunningSystem:
+        system = RunningSystem(list(launch_args), ros_env)
+        systems.append(system)
+        return system
+    yield start
+    for system in systems:
+        if system.process.poll() is None:
+            system.stop(signal.SIGKILL)
+        system.kill_everything()
+
+
+class TestNode:
+    """An rclpy node of the test process, spun in a background thread."""
+
+    def __init__(self, domain_id: int):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node('integration_test', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+        self.clock_ns = 0
+
+    def _spin(self):
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: B902 - shutting down mid-spin
+                if self.context.ok():
+                    raise
+
+    def start_clock(self, real_time_factor: float = 1.0, step_s: float = 0.005):
+        """Publish /clock from a thread, advancing step_s per step at the given speed."""
+        publisher = self.node.create_publisher(Clock, '/clock', QoSProfile(depth=10))
+
+        def run():
+            while self.context.ok():
+                self.clock_ns += int(step_s * 1e9)
+                msg = Clock()
+                msg.clock.sec, msg.clock.nanosec = divmod(self.clock_ns, 10 ** 9)
+                try:
+                    publisher.publish(msg)
+                except Exception:  # noqa: B902 - context shut down
+                    return
+                time.sleep(step_s / real_time_factor)
+        threading.Thread(target=run, daemon=True).start()
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=5)
+
+
+@pytest.fixture
+def test_node(ros_env):
+    """An rclpy node in the test's ROS domain."""
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    node = TestNode(int(ros_env['ROS_DOMAIN_ID']))
+    yield node
+    node.close()

@@ -1,0 +1,111 @@
+"""Integration: the minimal system through the pip-mode runner, over real DDS.
+
+robot_controller and robot_simulation run as separate processes started by
+mecanum_bringup.launch_runner, in their own ROS domain, on simulated time that
+this test publishes on /clock.
+"""
+
+import math
+import os
+import signal
+import threading
+import time
+
+from geometry_msgs.msg import Twist
+import pytest
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+
+pytestmark = pytest.mark.integration
+
+
+class Recorder:
+    """Collects messages of one topic from the test node."""
+
+    def __init__(self, node, msg_type, topic):
+        self.messages = []
+        self._lock = threading.Lock()
+        node.create_subscription(msg_type, topic, self._on_message, 50)
+
+    def _on_message(self, msg):
+        with self._lock:
+            self.messages.append(msg)
+
+    def wait_for(self, predicate, timeout=20.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                for msg in self.messages:
+                    if predicate(msg):
+                        return msg
+            time.sleep(0.02)
+        raise AssertionError(f'no matching message within {timeout} s '
+                             f'({len(self.messages)} received)')
+
+    def latest(self):
+        with self._lock:
+            return self.messages[-1] if self.messages else None
+
+
+def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_node,
+                                                            processes_with_marker):
+    node = test_node.node
+    test_node.start_clock()
+    tf = Recorder(node, TFMessage, '/tf')
+    cmd_vel = Recorder(node, Twist, 'cmd_vel')
+    status = Recorder(node, String, 'control_status')
+    command_pub = node.create_publisher(String, 'control_command', 10)
+
+    system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
+    system.wait_for_line(r'\[robot_controller\].*ready')
+    system.wait_for_line(r'\[robot_simulation\].*started')
+    # The simulation publishes odom -> base_link on /tf from its own process.
+    first = tf.wait_for(lambda m: m.transforms)
+    assert (first.transforms[0].header.frame_id, first.transforms[0].child_frame_id) == (
+        'odom', 'base_link')
+
+    deadline = time.monotonic() + 20
+    while command_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    command_pub.publish(String(data='strafe left 0.3 m at 0.3 m/s'))
+    status.wait_for(lambda m: m.data == 'accepted: strafe left 0.3 m at 0.3 m/s')
+    cmd_vel.wait_for(lambda m: abs(m.linear.y - 0.3) < 1e-9 and m.linear.x == 0.0)
+    status.wait_for(lambda m: m.data == 'done: strafe left')
+    time.sleep(0.3)  # let the final transforms arrive
+    pose = tf.latest().transforms[0].transform
+    # 0.3 m to the left within one controller period (0.05 s of 0.3 m/s) and latency.
+    assert pose.translation.y == pytest.approx(0.3, abs=0.03)
+    assert pose.translation.x == pytest.approx(0.0, abs=1e-6)
+    assert 2 * math.atan2(pose.rotation.z, pose.rotation.w) == pytest.approx(0.0, abs=1e-6)
+
+    pids = [system.node_pid('robot_controller'), system.node_pid('robot_simulation')]
+    started = time.monotonic()
+    assert system.stop(signal.SIGINT) == 0
+    assert time.monotonic() - started < 6.0
+    assert 'shutting down (received SIGINT)' in system.output()
+    for pid in pids:
+        assert not os.path.exists(f'/proc/{pid}') or \
+            open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()[0] == 'Z'
+    assert processes_with_marker(system.marker) == []
+
+
+def test_respawned_node_rejoins_the_graph(start_system, test_node, processes_with_marker):
+    node = test_node.node
+    test_node.start_clock()
+    robot_status = Recorder(node, String, 'robot_status')
+    system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
+    robot_status.wait_for(lambda m: m.data.startswith('Position:'))
+    os.kill(system.node_pid('robot_simulation'), signal.SIGKILL)
+    system.node_pid('robot_simulation', start=2)
+    count_before = len(robot_status.messages)
+    robot_status.wait_for(lambda m: len(robot_status.messages) > count_before + 5)
+    assert system.stop(signal.SIGTERM) == 0
+    assert processes_with_marker(system.marker) == []
+
+
+def test_bad_launch_argument_is_refused_before_anything_starts(start_system,
+                                                              processes_with_marker):
+    system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'no_such_arg:=1')
+    assert system.process.wait(timeout=20) == 2
+    assert 'unknown launch argument(s) no_such_arg' in system.output()
+    assert processes_with_marker(system.marker) == []
