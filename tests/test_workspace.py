@@ -1,0 +1,57 @@
+"""The workspace is a proper colcon workspace that an apt ROS 2 install can build."""
+
+import os
+from pathlib import Path
+import subprocess
+
+from catkin_pkg.package import parse_package
+from mecanum_bringup.launch_runner import find_executable
+from mecanum_bringup.system_description import load_system
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGES = sorted(p.parent.name for p in (REPO / 'src').glob('*/package.xml'))
+PYTHON_PACKAGES = [p for p in PACKAGES if (REPO / 'src' / p / 'setup.py').exists()]
+LAUNCH_FILES = sorted((REPO / 'src').glob('*/launch/*.launch.yaml'))
+
+
+def test_the_seed_packages_exist():
+    assert set(PACKAGES) == {
+        'mecanum_description', 'mecanum_control', 'mecanum_localization',
+        'mecanum_navigation', 'mecanum_bringup', 'robot_controller', 'robot_simulation',
+        'mecanum_interfaces'}
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_package_xml_is_valid_format_3(package):
+    manifest = parse_package(REPO / 'src' / package / 'package.xml')  # validates
+    assert manifest.name == package
+    assert manifest.package_format == 3
+    manifest.validate()
+
+
+@pytest.mark.parametrize('package', PYTHON_PACKAGES)
+def test_ament_python_package_has_the_standard_files(package):
+    root = REPO / 'src' / package
+    for name in ('setup.py', 'setup.cfg', f'resource/{package}', 'README.md',
+                 'test/test_flake8.py', 'test/test_pep257.py', f'{package}/__init__.py'):
+        assert (root / name).exists(), f'{package} lacks {name}'
+    assert f'script_dir=$base/lib/{package}' in (root / 'setup.cfg').read_text()
+
+
+def test_apt_users_colcon_sees_only_the_workspace_packages():
+    """Run at the repository root, colcon must not find the venv or the pip-only overlay."""
+    listed = subprocess.run(['colcon', 'list', '--names-only', '--base-paths', str(REPO)],
+                            cwd=REPO, capture_output=True, text=True, check=True)
+    assert sorted(listed.stdout.split()) == PACKAGES
+
+
+@pytest.mark.parametrize('launch_file', LAUNCH_FILES, ids=lambda p: f'{p.parent.parent.name}/'
+                         f'{p.name}')
+def test_every_system_description_resolves(launch_file):
+    """Every launch YAML loads, its packages, executables and parameter files exist."""
+    system = load_system(launch_file)
+    for node in system.nodes:
+        assert find_executable(node.package, node.executable, os.environ).is_file()
+    wrapper = launch_file.with_name(launch_file.name.replace('.launch.yaml', '.launch.py'))
+    assert wrapper.exists() and launch_file.name in wrapper.read_text()
