@@ -55,3 +55,17 @@ def test_every_system_description_resolves(launch_file):
         assert find_executable(node.package, node.executable, os.environ).is_file()
     wrapper = launch_file.with_name(launch_file.name.replace('.launch.yaml', '.launch.py'))
     assert wrapper.exists() and launch_file.name in wrapper.read_text()
+
+
+def test_installed_executables_run_directly():
+    """./mecanum run is the pip setup's `ros2 run`: it finds and starts the executable."""
+    result = subprocess.run(
+        [str(REPO / 'mecanum'), 'run', 'robot_controller', 'command_script', '--ros-args',
+         '-p', 'start_delay_s:=0.5'],
+        capture_output=True, text=True, timeout=60)
+    # No "commands" parameter given: the node itself refuses to start, with a clear error.
+    assert result.returncode == 2
+    assert 'parameter "commands" must list at least one command' in result.stderr
+    missing = subprocess.run([str(REPO / 'mecanum'), 'run', 'robot_controller', 'nope'],
+                             capture_output=True, text=True, timeout=60)
+    assert missing.returncode == 2 and "No executable 'nope'" in missing.stderr

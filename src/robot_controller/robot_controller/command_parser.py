@@ -91,6 +91,12 @@ def _quantity(token: str) -> Tuple[float, str]:
     return value, match.group(2)
 
 
+def _positive(value: float, message: str) -> float:
+    if not value > 0.0:
+        raise CommandError(message)
+    return value
+
+
 def _join_quantities(words: List[str]) -> List[str]:
     """Glue numbers to their units: ['0.5', 'm', 'at', '0.2', 'm/s'] -> ['0.5m', 'at', ...]."""
     joined: List[str] = []
@@ -140,6 +146,7 @@ def parse_command(text: str, limits: CommandLimits = CommandLimits()) -> Motion:
     index = 0
     while index < len(rest):
         token = rest[index]
+        # "at" only announces a speed: "forward 1 m at 0.3 m/s" == "forward 1 m 0.3 m/s".
         if token == 'at':
             if index + 1 >= len(rest):
                 raise CommandError('"at" needs a speed, e.g. "at 0.3 m/s"')
@@ -148,31 +155,22 @@ def parse_command(text: str, limits: CommandLimits = CommandLimits()) -> Motion:
             if unit not in speed_units:
                 raise CommandError(f'speed unit {unit!r} does not fit "{name}"; use '
                                    + ' or '.join(speed_units))
-            speed = value * speed_units[unit]
-            if not speed > 0.0:
-                raise CommandError('speed must be positive')
         else:
             value, unit = _quantity(token)
-            if unit in speed_units:
-                speed = value * speed_units[unit]
-                if not speed > 0.0:
-                    raise CommandError('speed must be positive')
-            elif unit in _DURATION_UNITS:
-                if duration is not None or amount is not None:
-                    raise CommandError('give either one distance/angle or one duration')
-                duration = value * _DURATION_UNITS[unit]
-                if not duration > 0.0:
-                    raise CommandError('duration must be positive')
-            elif unit in amount_units:
-                if duration is not None or amount is not None:
-                    raise CommandError('give either one distance/angle or one duration')
-                amount = value * amount_units[unit]
-                if not amount > 0.0:
-                    raise CommandError('distance or angle must be positive; '
-                                       'use the opposite direction instead of a sign')
+        if unit in speed_units:
+            speed = _positive(value * speed_units[unit], 'speed must be positive')
+        elif unit in _DURATION_UNITS or unit in amount_units:
+            if duration is not None or amount is not None:
+                raise CommandError('give either one distance/angle or one duration')
+            if unit in _DURATION_UNITS:
+                duration = _positive(value * _DURATION_UNITS[unit], 'duration must be positive')
             else:
-                expected = ', '.join([*amount_units, *_DURATION_UNITS, *speed_units])
-                raise CommandError(f'unit {unit!r} does not fit "{name}" (use {expected})')
+                amount = _positive(value * amount_units[unit],
+                                   'distance or angle must be positive; '
+                                   'use the opposite direction instead of a sign')
+        else:
+            expected = ', '.join([*amount_units, *_DURATION_UNITS, *speed_units])
+            raise CommandError(f'unit {unit!r} does not fit "{name}" (use {expected})')
         index += 1
     if speed > max_speed:
         raise CommandError(f'speed {speed:g} exceeds the limit {max_speed:g} for "{name}"')
