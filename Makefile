@@ -9,6 +9,8 @@ setup:
 	@$(PYTHON) tools/bootstrap.py
 
 demo: setup
+	@echo "Demo: kinematic robot simulation + text-command controller, each its own process,"
+	@echo "driven through a script of mecanum moves; Ctrl-C stops everything."
 	@./mecanum launch mecanum_bringup demo.launch.yaml
 
 test: setup
