@@ -33,7 +33,8 @@ import time
 ROOT = Path(__file__).resolve().parents[1]
 VENV = ROOT / '.venv'
 # One lock per Python minor version, resolved by that interpreter.
-LOCK_FILE = ROOT / 'requirements' / f'ros-jazzy-pip.py{sys.version_info[0]}{sys.version_info[1]}.lock.txt'
+PY_TAG = f'py{sys.version_info[0]}{sys.version_info[1]}'
+LOCK_FILE = ROOT / 'requirements' / f'ros-jazzy-pip.{PY_TAG}.lock.txt'
 OVERLAY_SRC = ROOT / 'ros_pip_overlay'
 OVERLAY_PREFIX = VENV / 'ros_overlay'
 STAMP_DIR = VENV / '.mecanum_stamps'
