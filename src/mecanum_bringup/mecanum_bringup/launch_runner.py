@@ -29,8 +29,8 @@ from typing import Dict, List, Mapping, Optional, TextIO
 
 from mecanum_bringup.isolation import isolated_environment, lease_domain_id
 from mecanum_bringup.system_description import (
-    default_find_package_share, load_system, NodeProcess, parse_launch_arguments, System,
-    SystemDescriptionError)
+    default_find_package_share, description_file, load_system, NodeProcess,
+    parse_launch_arguments, System, SystemDescriptionError)
 
 _PR_SET_PDEATHSIG = 1
 # Loaded here, not in the forked child: dynamic loading between fork and exec can
@@ -207,8 +207,7 @@ def resolve_launch_file(package_or_path: str, file_name: Optional[str]) -> Path:
         return Path(package_or_path)
     share = Path(default_find_package_share(package_or_path))
     for candidate in (share / 'launch' / file_name, share / file_name):
-        if candidate.exists() or candidate.with_name(
-                candidate.name.replace('.launch.py', '.launch.yaml')).exists():
+        if description_file(candidate).exists():
             return candidate
     raise SystemDescriptionError(f'no launch file {file_name!r} in package {package_or_path!r}')
 

@@ -130,6 +130,14 @@ def yaml_scalar(value: object) -> str:
     return text
 
 
+def description_file(path: Path) -> Path:
+    """Return the YAML system description behind a launch file name (x.launch.py -> .yaml)."""
+    path = Path(path)
+    if path.name.endswith('.launch.py'):
+        return path.with_name(path.name[:-len('.launch.py')] + '.launch.yaml')
+    return path
+
+
 def parse_bool(text: object, where: str) -> bool:
     """Parse a launch boolean ('true'/'false', any case) or raise with context."""
     lowered = str(text).strip().lower()
@@ -160,6 +168,8 @@ class _Resolver:
         self._environ = environ
         # Variables set by set_env entries in force at this point of the files.
         self._set_env: Dict[str, str] = {}
+        # Files being read, outermost first, to catch an include of an including file.
+        self._include_stack: List[Path] = []
         self.system = System()
 
     def substitute(self, value: object, scope: Dict[str, str], where: str,
@@ -203,10 +213,10 @@ class _Resolver:
         launch, command line arguments and the including file's configurations
         flow into included files, and an include's ``arg`` entries add to them.
         """
-        path = Path(path)
+        path = description_file(path)
         if not path.is_file():
             raise SystemDescriptionError(f'launch file {path} does not exist')
-        if path in self.system.files:
+        if path in self._include_stack:
             raise SystemDescriptionError(f'{path}: included recursively')
         self.system.files.append(path)
         try:
@@ -221,7 +231,9 @@ class _Resolver:
         scope = dict(inherited)
         # As in ROS 2 launch, an included file's set_env does not leak out of it.
         saved_environ, saved_set_env = self._environ, self._set_env
+        self._include_stack.append(path)
         self._load_entries(path, document['launch'], scope)
+        self._include_stack.pop()
         self._environ, self._set_env = saved_environ, saved_set_env
 
     def _load_entries(self, path: Path, entries: list, scope: Dict[str, str]) -> None:
@@ -291,9 +303,6 @@ class _Resolver:
             if not isinstance(item, dict) or 'name' not in item or 'value' not in item:
                 raise SystemDescriptionError(f'{where}: each include arg needs name and value')
             passed[str(item['name'])] = self.substitute(item['value'], scope, where, launch_dir)
-        if included_path.name.endswith('.launch.py'):
-            included_path = included_path.with_name(
-                included_path.name[:-len('.launch.py')] + '.launch.yaml')
         self.load(included_path, passed)
 
     def _node(self, body: dict, scope: Dict[str, str], where: str,
@@ -387,9 +396,7 @@ def load_system(path: Path, arguments: Optional[Dict[str, str]] = None,
     ``path`` may name the ``.launch.py`` wrapper; its ``.launch.yaml`` is read.
     Raises SystemDescriptionError with a message naming the file and entry.
     """
-    path = Path(path)
-    if path.name.endswith('.launch.py'):
-        path = path.with_name(path.name[:-len('.launch.py')] + '.launch.yaml')
+    path = description_file(path)
     resolver = _Resolver(find_package_share, dict(os.environ if environ is None else environ))
     arguments = dict(arguments or {})
     resolver.load(path, arguments)

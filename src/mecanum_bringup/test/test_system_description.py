@@ -149,6 +149,22 @@ def test_recursive_include_is_reported(tmp_path):
         load_system(path, {}, lambda name: '', environ={})
 
 
+def test_same_file_included_twice_side_by_side(tmp_path):
+    """Two robots from one file is not recursion: both are loaded."""
+    write(tmp_path / 'robot.launch.yaml', """
+        launch:
+        - arg: {name: ns}
+        - node: {pkg: pkg_a, exec: x, namespace: $(var ns)}
+        """)
+    path = write(tmp_path / 'two.launch.yaml', """
+        launch:
+        - include: {file: $(dirname)/robot.launch.py, arg: [{name: ns, value: r1}]}
+        - include: {file: $(dirname)/robot.launch.yaml, arg: [{name: ns, value: r2}]}
+        """)
+    system = load_system(path, {}, lambda name: '', environ={})
+    assert [node.namespace for node in system.nodes] == ['r1', 'r2']
+
+
 @pytest.mark.parametrize('argv, expected', [
     ([], {}),
     (['a:=1', 'b_2:=x:=y', 'c:='], {'a': '1', 'b_2': 'x:=y', 'c': ''}),
