@@ -24,6 +24,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
+        ('share/' + package_name + '/doc', glob('doc/*.md')),
     ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml'),
     install_requires=['setuptools'],
     zip_safe=True,
@@ -33,5 +34,13 @@ setup(
         'Motor control of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
-    entry_points={},
+    entry_points={
+        'console_scripts': [
+            'motor_controller = mecanum_control.motor_controller:main',
+            'velocity_controller = mecanum_control.velocity_controller:main',
+            'encoder_reader = mecanum_control.encoder_reader:main',
+            'hardware_interface = mecanum_control.hardware_interface:main',
+            'board_emulator = mecanum_control.board_emulator:main',
+        ],
+    },
 )

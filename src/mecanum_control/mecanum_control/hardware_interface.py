@@ -1,0 +1,299 @@
+"""
+hardware_interface: the serial link to the ESP32 motor board (protocol: doc/esp32_protocol.md).
+
+Subscribes ``motor_efforts`` (std_msgs/Float32MultiArray, PWM duty -1..1, FL FR RL RR)
+and sends them to the board at once, and again at ``command_rate_hz`` as keep-alive.
+Publishes what the board reports: ``wheel_ticks`` (mecanum_interfaces/WheelTicks),
+``imu/data_raw`` (sensor_msgs/Imu: angular velocity and linear acceleration, no
+orientation) and ``/diagnostics`` (link state, board faults, frame statistics).
+
+Safety: efforts older than ``effort_timeout_s`` (steady clock) are replaced by zero;
+on link loss (read error, port gone, or no valid frame for ``link_timeout_s``) the
+stored command is zeroed and the node reopens ``port`` every ``reconnect_period_s``;
+after a reconnect only efforts received after it are sent. The board itself stops
+the motors when commands stop for ``board_command_timeout_ms`` (motor_params.yaml).
+"""
+
+import math
+import sys
+import threading
+import time
+from typing import Optional
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from mecanum_control import esp32_protocol as proto
+from mecanum_control.node_main import run_node
+from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.wheel_odometry import wrapped_delta
+from mecanum_interfaces.msg import WheelTicks
+from rclpy.node import Node
+from sensor_msgs.msg import Imu
+import serial
+from std_msgs.msg import Float32MultiArray
+
+ZERO_EFFORTS = (0.0, 0.0, 0.0, 0.0)
+
+
+class HardwareInterface(Node):
+    """Bridges ROS topics and the ESP32's serial protocol."""
+
+    def __init__(self):
+        super().__init__('hardware_interface')
+        config = declare_robot_config(self)
+        self.board_command_timeout_ms = config.board_command_timeout_ms
+        self.port = self.declare_parameter('port', '/dev/esp32').value
+        self.baud_rate = int(self.declare_parameter('baud_rate', 115200).value)
+        self.reconnect_period_s = positive(
+            'reconnect_period_s', self.declare_parameter('reconnect_period_s', 0.5).value)
+        self.link_timeout_s = positive(
+            'link_timeout_s', self.declare_parameter('link_timeout_s', 0.5).value)
+        self.effort_timeout_s = positive(
+            'effort_timeout_s', self.declare_parameter('effort_timeout_s', 0.2).value)
+        command_rate_hz = positive(
+            'command_rate_hz', self.declare_parameter('command_rate_hz', 50.0).value)
+        self.imu_frame_id = self.declare_parameter('imu_frame_id', 'imu_link').value
+        self.base_frame_id = self.declare_parameter('base_frame_id', 'base_link').value
+        self.keepalive_s = 1.0 / command_rate_hz
+        if self.keepalive_s * 1000 >= self.board_command_timeout_ms:
+            raise ValueError(f'command_rate_hz {command_rate_hz} is too slow for the board '
+                             f'timeout of {self.board_command_timeout_ms} ms')
+
+        self._lock = threading.Lock()
+        self._serial: Optional[serial.Serial] = None
+        self._connected_at = 0.0
+        self._last_frame_at = 0.0
+        self._last_sent_at = 0.0
+        self._efforts = ZERO_EFFORTS
+        self._efforts_at = -math.inf
+        self._tx_seq = 0
+        self._decoder = proto.FrameDecoder()
+        self._trackers = {}
+        self._ticks_sequence = 0
+        self._last_ticks_seq: Optional[int] = None
+        self._last_board_time_us: Optional[int] = None
+        self._board_status: Optional[proto.BoardStatus] = None
+        self._last_faults = proto.FaultFlags(0)
+        self._disconnect_reason = 'not connected yet'
+        self._link_losses = 0
+        self._stop = threading.Event()
+
+        self.ticks_pub = self.create_publisher(WheelTicks, 'wheel_ticks', 50)
+        self.imu_pub = self.create_publisher(Imu, 'imu/data_raw', 50)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.efforts_sub = self.create_subscription(
+            Float32MultiArray, 'motor_efforts', self.on_efforts, 10)
+        self.command_timer = self.create_timer(self.keepalive_s, self.on_command_timer)
+        self.connect_timer = self.create_timer(self.reconnect_period_s, self.on_connect_timer)
+        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        self._reader = threading.Thread(target=self._read_loop, name='serial_reader',
+                                        daemon=True)
+        self._reader.start()
+        self.get_logger().info(f'Hardware interface started, board at {self.port} '
+                               f'(protocol v{proto.PROTOCOL_VERSION})')
+        self.on_connect_timer()
+
+    # Commands to the board -------------------------------------------------------------
+    def on_efforts(self, msg: Float32MultiArray) -> None:
+        """Take new efforts; reject malformed ones (and command zero instead)."""
+        values = list(msg.data)
+        if len(values) != 4 or not all(math.isfinite(v) for v in values):
+            self.get_logger().warning(
+                f'Rejecting motor_efforts {values}: need 4 finite duties (FL FR RL RR); '
+                'commanding zero', throttle_duration_sec=1.0)
+            values = list(ZERO_EFFORTS)
+        if any(abs(v) > 1.0 for v in values):
+            self.get_logger().warning(f'motor_efforts {values} beyond +-1 clamped',
+                                      throttle_duration_sec=5.0)
+        with self._lock:
+            self._efforts = tuple(max(-1.0, min(1.0, v)) for v in values)
+            self._efforts_at = time.monotonic()
+        self._send_efforts()
+
+    def on_command_timer(self) -> None:
+        """Keep the board's command timeout from firing while the link is up."""
+        if time.monotonic() - self._last_sent_at >= 0.9 * self.keepalive_s:
+            self._send_efforts()
+
+    def _send_efforts(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            port = self._serial
+            fresh = (now - self._efforts_at <= self.effort_timeout_s
+                     and self._efforts_at > self._connected_at)
+            efforts = self._efforts if fresh else ZERO_EFFORTS
+            seq = self._tx_seq
+            self._tx_seq = (seq + 1) % (1 << 16)
+        if port is None:
+            return
+        frame = proto.encode_frame(proto.MotorEfforts(efforts, self.board_command_timeout_ms),
+                                   seq)
+        try:
+            port.write(frame)
+            self._last_sent_at = now
+        except (serial.SerialException, OSError) as error:
+            self._lose_link(port, f'write failed: {error}')
+
+    # Connection management -------------------------------------------------------------
+    def on_connect_timer(self) -> None:
+        """Open the port when not connected; drop a silent link."""
+        with self._lock:
+            port = self._serial
+        if port is not None:
+            silent_s = time.monotonic() - max(self._last_frame_at, self._connected_at)
+            if silent_s > self.link_timeout_s:
+                self._lose_link(port, f'no valid frame from the board for {silent_s:.2f} s')
+            return
+        try:
+            port = serial.Serial(self.port, self.baud_rate, timeout=0.05, write_timeout=0.1)
+            port.reset_input_buffer()
+            port.write(b'\x00')  # delimiter: the board starts decoding at a clean frame
+        except (serial.SerialException, OSError, ValueError) as error:
+            if self._disconnect_reason != str(error):
+                self._disconnect_reason = str(error)
+                self.get_logger().warning(f'Cannot open {self.port}: {error}; retrying every '
+                                          f'{self.reconnect_period_s} s')
+            return
+        with self._lock:
+            self._serial = port
+            self._connected_at = time.monotonic()
+            self._decoder = proto.FrameDecoder()
+            self._trackers = {}
+            self._last_board_time_us = None
+        self.get_logger().info(f'Connected to the board at {self.port}')
+        self._send_efforts()  # zero: nothing was commanded since this connection
+        self.publish_diagnostics()
+
+    def _lose_link(self, port: serial.Serial, reason: str) -> None:
+        with self._lock:
+            if self._serial is not port:
+                return  # already handled
+            self._serial = None
+            self._efforts = ZERO_EFFORTS
+            self._disconnect_reason = reason
+            self._link_losses += 1
+        try:
+            port.close()
+        except (serial.SerialException, OSError):
+            pass
+        self.get_logger().error(f'Link to the board at {self.port} lost ({reason}); motors '
+                                'commanded zero, the board stops by its own timeout; '
+                                'reconnecting')
+        self.publish_diagnostics()
+
+    # Board reports -------------------------------------------------------------------
+    def _read_loop(self) -> None:
+        while not self._stop.is_set():
+            with self._lock:
+                port = self._serial
+            if port is None:
+                time.sleep(0.02)
+                continue
+            try:
+                data = port.read(max(1, port.in_waiting))
+            except (serial.SerialException, OSError, TypeError) as error:
+                self._lose_link(port, f'read failed: {error}')
+                continue
+            if not data:
+                continue
+            with self._lock:
+                frames = self._decoder.feed(data)
+            for frame in frames:
+                self._last_frame_at = time.monotonic()
+                self._handle(frame)
+
+    def _handle(self, frame: proto.Frame) -> None:
+        message = frame.message
+        board_time_us = getattr(message, 'board_time_us', None)
+        if board_time_us is not None:
+            last = self._last_board_time_us
+            if last is not None and wrapped_delta(last, board_time_us) < -1_000_000:
+                self.get_logger().warning('Board clock went back: the board restarted')
+                self._trackers = {}
+            self._last_board_time_us = board_time_us
+        # One sequence counter per message type (doc/esp32_protocol.md).
+        tracker = self._trackers.setdefault(type(message), proto.SequenceTracker())
+        status = tracker.update(frame.seq)
+        if status in ('duplicate', 'stale'):
+            return
+        stamp = self.get_clock().now().to_msg()
+        if isinstance(message, proto.EncoderTicks):
+            # Unwrap the 16-bit frame counter into WheelTicks' 32-bit one, keeping gaps.
+            step = 1
+            if status == 'gap' and self._last_ticks_seq is not None:
+                step = proto.seq_delta(self._last_ticks_seq, frame.seq)
+            self._last_ticks_seq = frame.seq
+            self._ticks_sequence = (self._ticks_sequence + step) % (1 << 32)
+            msg = WheelTicks()
+            msg.header.stamp = stamp
+            msg.header.frame_id = self.base_frame_id
+            msg.sequence = self._ticks_sequence
+            msg.board_time_us = message.board_time_us
+            msg.ticks = [int(t) for t in message.ticks]
+            self.ticks_pub.publish(msg)
+        elif isinstance(message, proto.ImuSample):
+            msg = Imu()
+            msg.header.stamp = stamp
+            msg.header.frame_id = self.imu_frame_id
+            msg.orientation_covariance[0] = -1.0  # no orientation estimate
+            (msg.linear_acceleration.x, msg.linear_acceleration.y,
+             msg.linear_acceleration.z) = (float(a) for a in message.accel_m_s2)
+            (msg.angular_velocity.x, msg.angular_velocity.y,
+             msg.angular_velocity.z) = (float(g) for g in message.gyro_rad_s)
+            self.imu_pub.publish(msg)
+        elif isinstance(message, proto.BoardStatus):
+            self._board_status = message
+            new_faults = message.faults & ~self._last_faults
+            if new_faults:
+                self.get_logger().warning(
+                    f'Board reports {proto.describe_faults(new_faults)}')
+            self._last_faults = message.faults
+
+    def publish_diagnostics(self) -> None:
+        """Publish the link and board state on /diagnostics."""
+        with self._lock:
+            connected = self._serial is not None
+            stats = self._decoder.stats
+        status = DiagnosticStatus(name='mecanum_control: ESP32 link', hardware_id=self.port)
+        board = self._board_status
+        if not connected:
+            status.level = DiagnosticStatus.ERROR
+            status.message = f'disconnected: {self._disconnect_reason}'
+        elif board is not None and board.faults:
+            status.level = DiagnosticStatus.WARN
+            status.message = f'board faults: {proto.describe_faults(board.faults)}'
+        else:
+            status.level = DiagnosticStatus.OK
+            status.message = 'connected'
+        lost = sum(t.lost for t in self._trackers.values())
+        values = {'port': self.port, 'link_losses': self._link_losses,
+                  'frames_ok': stats.frames_ok, 'frames_lost': lost,
+                  'bad_crc': stats.bad_crc, 'bad_cobs': stats.bad_cobs,
+                  'wrong_version': stats.wrong_version}
+        if board is not None:
+            values.update(battery_mv=board.battery_mv, board_rx_bad_frames=board.rx_bad_frames,
+                          board_faults=proto.describe_faults(board.faults))
+        status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(array)
+
+    def close(self) -> None:
+        """Command zero, stop the reader and close the port (clean shutdown)."""
+        with self._lock:
+            self._efforts_at = -math.inf
+        self._send_efforts()
+        self._stop.set()
+        self._reader.join(timeout=1.0)
+        with self._lock:
+            port, self._serial = self._serial, None
+        if port is not None:
+            port.close()
+
+
+def main(args=None) -> int:
+    """Run the hardware_interface node until Ctrl-C or SIGTERM."""
+    return run_node(HardwareInterface, 'hardware_interface', args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

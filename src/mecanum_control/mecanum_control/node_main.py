@@ -1,0 +1,50 @@
+"""
+The standard ``main()`` of the mecanum_control nodes.
+
+rclpy's own signal handler would shut the context down before a node could send its
+final zero command, so SIGINT (Ctrl-C) and SIGTERM are turned into KeyboardInterrupt
+and the node's ``close()`` (if it has one) runs while the context is still valid.
+A parameter error (ValueError) is logged as fatal and gives exit code 2.
+"""
+
+import signal
+from typing import Callable, List, Optional
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+
+def _raise_keyboard_interrupt(_signum, _frame):
+    raise KeyboardInterrupt
+
+
+def run_node(node_factory: Callable[[], Node], name: str,
+             args: Optional[List[str]] = None) -> int:
+    """Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    try:
+        node = node_factory()
+    except ValueError as error:
+        rclpy.logging.get_logger(name).fatal(f'{error}')
+        rclpy.try_shutdown()
+        return 2
+    except KeyboardInterrupt:
+        rclpy.try_shutdown()
+        return 0
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        close = getattr(node, 'close', None)
+        if close is not None:
+            try:
+                close()
+            except Exception as error:  # noqa: B902 - report, then still clean up
+                node.get_logger().error(f'close failed: {error}')
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

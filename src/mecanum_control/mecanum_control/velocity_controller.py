@@ -1,0 +1,190 @@
+"""
+velocity_controller: per-wheel PID from wheel speed targets to motor efforts.
+
+Subscribes ``motor_speeds`` (std_msgs/Float32MultiArray, target wheel speeds rad/s,
+FL FR RL RR) and ``joint_states`` (sensor_msgs/JointState; measured wheel speeds
+of the joints named in ``wheel_joint_names``). Publishes ``motor_efforts``
+(std_msgs/Float32MultiArray, PWM duty -1..1, FL FR RL RR) every control period and
+``/diagnostics``.
+
+Each wheel runs :class:`mecanum_control.pid.PidController` with the real time step
+(feedforward, anti-windup, output limit, derivative on measurement). A wheel whose
+effort stays high without motion (stalled, or its encoder disconnected) is stopped
+by :class:`mecanum_control.pid.StallDetector` and reported until its target returns
+to zero. Stale targets (``target_timeout_s``) mean zero; stale measurements
+(``measurement_timeout_s``) stop every wheel. Gains: ``config/pid_gains.yaml``.
+"""
+
+import math
+import sys
+from typing import List, Optional
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from mecanum_control.motor_controller import wheel_array
+from mecanum_control.node_main import run_node
+from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.pid import PidController, PidGains, StallConfig, StallDetector
+from rclpy.node import Node
+from rclpy.time import Time
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+
+WHEELS = ('FL', 'FR', 'RL', 'RR')
+
+
+class VelocityController(Node):
+    """Closes the wheel speed loops."""
+
+    def __init__(self):
+        super().__init__('velocity_controller')
+        config = declare_robot_config(self)
+        self.joint_names = list(config.wheel_joint_names)
+        self.max_wheel_speed_rad_s = config.max_wheel_speed_rad_s
+        kf_default = 1.0 / config.motor_no_load_speed_rad_s
+        declare = self.declare_parameter
+        gains = PidGains(
+            kp=float(declare('kp', 0.03).value), ki=float(declare('ki', 0.3).value),
+            kd=float(declare('kd', 0.0).value), kf=float(declare('kf', kf_default).value),
+            static_effort=float(declare('static_effort', 0.0).value),
+            max_effort=float(declare('max_effort', 1.0).value),
+            derivative_filter_tau_s=float(declare('derivative_filter_tau_s', 0.02).value))
+        stall = StallConfig(
+            effort_threshold=float(declare('stall_effort_threshold', 0.6).value),
+            velocity_threshold_rad_s=float(declare('stall_velocity_threshold_rad_s', 0.5).value),
+            time_s=float(declare('stall_time_s', 0.5).value))
+        control_rate_hz = positive('control_rate_hz', declare('control_rate_hz', 50.0).value)
+        self.target_timeout_s = positive('target_timeout_s',
+                                         declare('target_timeout_s', 0.5).value)
+        self.measurement_timeout_s = positive('measurement_timeout_s',
+                                              declare('measurement_timeout_s', 0.25).value)
+        self.pids = [PidController(gains) for _ in WHEELS]
+        self.stall_detectors = [StallDetector(stall) for _ in WHEELS]
+        self.targets = [0.0] * 4
+        self.target_time: Optional[Time] = None
+        self.measured = [0.0] * 4
+        self.measured_time: Optional[Time] = None
+        self.efforts = [0.0] * 4
+        self.last_update: Optional[Time] = None
+        self.state = 'waiting for the first joint_states'
+        self._reported = set()
+
+        self.efforts_pub = self.create_publisher(Float32MultiArray, 'motor_efforts', 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.target_sub = self.create_subscription(
+            Float32MultiArray, 'motor_speeds', self.on_targets, 10)
+        self.joint_sub = self.create_subscription(
+            JointState, 'joint_states', self.on_joint_states, 20)
+        self.timer = self.create_timer(1.0 / control_rate_hz, self.on_control)
+        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        self.get_logger().info(
+            f'Velocity controller started: kp {gains.kp} ki {gains.ki} kd {gains.kd} '
+            f'kf {gains.kf:.4f} at {control_rate_hz} Hz')
+
+    def on_targets(self, msg: Float32MultiArray) -> None:
+        """Take wheel speed targets; malformed or non-finite ones mean stop."""
+        values = list(msg.data)
+        if len(values) != 4 or not all(math.isfinite(v) for v in values):
+            self.get_logger().warning(f'Rejecting motor_speeds {values}: need 4 finite '
+                                      'wheel speeds (FL FR RL RR); stopping',
+                                      throttle_duration_sec=1.0)
+            values = [0.0] * 4
+        limit = self.max_wheel_speed_rad_s
+        self.targets = [max(-limit, min(limit, v)) for v in values]
+        self.target_time = self.get_clock().now()
+
+    def on_joint_states(self, msg: JointState) -> None:
+        """Take measured wheel speeds of our joints (other joints are ignored)."""
+        if len(msg.velocity) != len(msg.name):
+            return
+        speeds = dict(zip(msg.name, msg.velocity))
+        if not all(name in speeds for name in self.joint_names):
+            return
+        values = [speeds[name] for name in self.joint_names]
+        if not all(math.isfinite(v) for v in values):
+            self.get_logger().warning('Non-finite wheel speed in joint_states ignored',
+                                      throttle_duration_sec=1.0)
+            return
+        self.measured = values
+        self.measured_time = self.get_clock().now()
+
+    def _age_s(self, stamp: Optional[Time], now: Time) -> float:
+        return math.inf if stamp is None else (now - stamp).nanoseconds * 1e-9
+
+    def on_control(self) -> None:
+        """One control period: PID per wheel with the measured dt, then publish."""
+        now = self.get_clock().now()
+        dt_s = 0.0 if self.last_update is None else (now - self.last_update).nanoseconds * 1e-9
+        self.last_update = now
+        targets = self.targets
+        if self._age_s(self.target_time, now) > self.target_timeout_s:
+            targets = [0.0] * 4
+        if self.measured_time is None:
+            self.efforts = [0.0] * 4  # waiting for the first joint_states
+        elif self._age_s(self.measured_time, now) > self.measurement_timeout_s:
+            self._set_state('no wheel speed measurements (joint_states) for '
+                            f'{self.measurement_timeout_s} s: all wheels stopped')
+            for pid in self.pids:
+                pid.reset()
+            self.efforts = [0.0] * 4
+        else:
+            self._set_state('ok')
+            self.efforts = self._run_pids(targets, dt_s)
+        self.efforts_pub.publish(wheel_array(self.efforts))
+
+    def _run_pids(self, targets: List[float], dt_s: float) -> List[float]:
+        efforts = []
+        for i, (pid, stall) in enumerate(zip(self.pids, self.stall_detectors)):
+            effort = pid.update(targets[i], self.measured[i], dt_s)
+            if stall.update(effort, self.measured[i], targets[i], dt_s):
+                pid.reset()
+                effort = 0.0
+                if WHEELS[i] not in self._reported:
+                    self._reported.add(WHEELS[i])
+                    self.get_logger().error(
+                        f'Wheel {WHEELS[i]} stalled or its encoder is disconnected: high '
+                        'effort without motion; wheel stopped until its target returns to 0')
+                    self.publish_diagnostics()
+            elif WHEELS[i] in self._reported:
+                self._reported.discard(WHEELS[i])
+                self.get_logger().info(f'Wheel {WHEELS[i]} released after a zero target')
+            efforts.append(effort)
+        return efforts
+
+    def _set_state(self, state: str) -> None:
+        if state != self.state:
+            if state == 'ok':
+                self.get_logger().info('Wheel speed measurements arriving: control active')
+            else:
+                self.get_logger().error(state)
+            self.state = state
+            self.publish_diagnostics()
+
+    def publish_diagnostics(self) -> None:
+        """Report control state and stalled wheels on /diagnostics."""
+        stalled = [WHEELS[i] for i, s in enumerate(self.stall_detectors) if s.stalled]
+        status = DiagnosticStatus(name='mecanum_control: velocity_controller')
+        if self.state != 'ok':
+            status.level, status.message = DiagnosticStatus.ERROR, self.state
+        elif stalled:
+            status.level = DiagnosticStatus.ERROR
+            status.message = f'stalled or encoder disconnected: {", ".join(stalled)}'
+        else:
+            status.level, status.message = DiagnosticStatus.OK, 'ok'
+        status.values = [KeyValue(key=f'effort_{w}', value=f'{e:.3f}')
+                         for w, e in zip(WHEELS, self.efforts)]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(array)
+
+    def close(self) -> None:
+        """Publish zero efforts once more on the way out."""
+        self.efforts_pub.publish(wheel_array([0.0] * 4))
+
+
+def main(args=None) -> int:
+    """Run the velocity_controller node until Ctrl-C or SIGTERM."""
+    return run_node(VelocityController, 'velocity_controller', args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
