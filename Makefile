@@ -21,5 +21,9 @@ colcon-test: setup
 	  --install-base install --event-handlers console_cohesion+
 	@./mecanum exec colcon test-result --test-result-base build --verbose
 
+# Speed benchmarks (not tests: shared machines are noisy); each prints a table.
+bench: setup
+	@for script in bench/*.py; do ./mecanum exec python $$script || exit 1; done
+
 clean:
 	rm -rf build install log .venv

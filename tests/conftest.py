@@ -134,6 +134,54 @@ def start_system(ros_env):
         system.kill_everything()
 
 
+class Recorder:
+    """Collects messages of one topic from the test node."""
+
+    def __init__(self, node, msg_type, topic):
+        """Subscribe node to topic (reliable, depth 50)."""
+        self.messages = []
+        self._lock = threading.Lock()
+        node.create_subscription(msg_type, topic, self._on_message, 50)
+
+    def _on_message(self, msg):
+        with self._lock:
+            self.messages.append((time.monotonic(), msg))
+
+    def wait_for(self, predicate, timeout=20.0):
+        """Return the first message (also among those already received) matching predicate."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                for _, msg in self.messages:
+                    if predicate(msg):
+                        return msg
+            time.sleep(0.02)
+        raise AssertionError(f'no matching message within {timeout} s '
+                             f'({len(self.messages)} received)')
+
+    def latest(self):
+        """Return the newest message, or None."""
+        with self._lock:
+            return self.messages[-1][1] if self.messages else None
+
+
+    def since(self, start: float) -> list:
+        """Messages received at or after monotonic time start."""
+        with self._lock:
+            return [msg for when, msg in self.messages if when >= start]
+
+    def wait_for_new(self, predicate, timeout=20.0):
+        """Like wait_for, but only among messages received from now on."""
+        start = time.monotonic()
+        deadline = start + timeout
+        while time.monotonic() < deadline:
+            for msg in self.since(start):
+                if predicate(msg):
+                    return msg
+            time.sleep(0.02)
+        raise AssertionError(f'no new matching message within {timeout} s')
+
+
 class TestNode:
     """An rclpy node of the test process, spun in a background thread."""
 
@@ -156,20 +204,30 @@ class TestNode:
                     raise
 
     def start_clock(self, real_time_factor: float = 1.0, step_s: float = 0.005):
-        """Publish /clock from a thread, advancing step_s per step at the given speed."""
+        """
+        Publish /clock from a thread every step_s of wall time.
+
+        Simulated time is elapsed wall time times real_time_factor, so it does not
+        drift from the wall clock when the test process is descheduled.
+        """
         publisher = self.node.create_publisher(Clock, '/clock', QoSProfile(depth=10))
+        start = time.monotonic()
 
         def run():
             while self.context.ok():
-                self.clock_ns += int(step_s * 1e9)
+                self.clock_ns = int((time.monotonic() - start) * real_time_factor * 1e9)
                 msg = Clock()
                 msg.clock.sec, msg.clock.nanosec = divmod(self.clock_ns, 10 ** 9)
                 try:
                     publisher.publish(msg)
                 except Exception:  # noqa: B902 - context shut down
                     return
-                time.sleep(step_s / real_time_factor)
+                time.sleep(step_s)
         threading.Thread(target=run, daemon=True).start()
+
+    def record(self, msg_type, topic: str) -> 'Recorder':
+        """Start recording a topic."""
+        return Recorder(self.node, msg_type, topic)
 
     def close(self):
         self.executor.shutdown()

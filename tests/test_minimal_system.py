@@ -8,7 +8,6 @@ this test publishes on /clock.
 import math
 import os
 import signal
-import threading
 import time
 
 from geometry_msgs.msg import Twist
@@ -19,41 +18,13 @@ from tf2_msgs.msg import TFMessage
 pytestmark = pytest.mark.integration
 
 
-class Recorder:
-    """Collects messages of one topic from the test node."""
-
-    def __init__(self, node, msg_type, topic):
-        self.messages = []
-        self._lock = threading.Lock()
-        node.create_subscription(msg_type, topic, self._on_message, 50)
-
-    def _on_message(self, msg):
-        with self._lock:
-            self.messages.append(msg)
-
-    def wait_for(self, predicate, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self._lock:
-                for msg in self.messages:
-                    if predicate(msg):
-                        return msg
-            time.sleep(0.02)
-        raise AssertionError(f'no matching message within {timeout} s '
-                             f'({len(self.messages)} received)')
-
-    def latest(self):
-        with self._lock:
-            return self.messages[-1] if self.messages else None
-
-
 def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_node,
                                                             processes_with_marker):
     node = test_node.node
     test_node.start_clock()
-    tf = Recorder(node, TFMessage, '/tf')
-    cmd_vel = Recorder(node, Twist, 'cmd_vel')
-    status = Recorder(node, String, 'control_status')
+    tf = test_node.record(TFMessage, '/tf')
+    cmd_vel = test_node.record(Twist, 'cmd_vel')
+    status = test_node.record(String, 'control_status')
     command_pub = node.create_publisher(String, 'control_command', 10)
 
     system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
@@ -92,7 +63,7 @@ def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_n
 def test_respawned_node_rejoins_the_graph(start_system, test_node, processes_with_marker):
     node = test_node.node
     test_node.start_clock()
-    robot_status = Recorder(node, String, 'robot_status')
+    robot_status = test_node.record(String, 'robot_status')
     system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
     robot_status.wait_for(lambda m: m.data.startswith('Position:'))
     os.kill(system.node_pid('robot_simulation'), signal.SIGKILL)
