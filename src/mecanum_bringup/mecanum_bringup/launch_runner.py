@@ -88,7 +88,7 @@ class Supervisor:
         self.nodes: List[ManagedNode] = []
         for spec in system.nodes:
             executable = find_executable(spec.package, spec.executable, base_env)
-            command = [str(executable), *spec.arguments, *spec.ros_args()]
+            command = [*spec.launch_prefix, str(executable), *spec.arguments, *spec.ros_args()]
             self.nodes.append(ManagedNode(spec, command, dict(base_env, **spec.env)))
 
     def say(self, label: str, text: str) -> None:

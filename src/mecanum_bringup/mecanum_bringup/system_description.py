@@ -50,7 +50,7 @@ import yaml
 
 _SUBSTITUTION = re.compile(r'\$\(([a-z-]+)((?:\s+[^()\s]+)*)\s*\)')
 _NODE_KEYS = {'pkg', 'exec', 'name', 'namespace', 'param', 'remap', 'args', 'ros_args',
-              'respawn', 'respawn_delay', 'on_exit', 'output', 'env'}
+              'respawn', 'respawn_delay', 'on_exit', 'output', 'env', 'launch-prefix'}
 
 
 class SystemDescriptionError(ValueError):
@@ -77,6 +77,7 @@ class NodeProcess:
     arguments: List[str] = field(default_factory=list)
     ros_arguments: List[str] = field(default_factory=list)
     env: Dict[str, str] = field(default_factory=dict)
+    launch_prefix: List[str] = field(default_factory=list)
     respawn: bool = False
     respawn_delay_s: float = 0.0
     shutdown_on_exit: bool = False
@@ -335,6 +336,7 @@ class _Resolver:
             node.env[sub(item['name'])] = sub(item['value'])
         node.arguments = shlex.split(sub(body.get('args', '')))
         node.ros_arguments = shlex.split(sub(body.get('ros_args', '')))
+        node.launch_prefix = shlex.split(sub(body.get('launch-prefix', '')))
         node.respawn = parse_bool(sub(body.get('respawn', 'false')), f'{where}: respawn')
         try:
             node.respawn_delay_s = float(sub(body.get('respawn_delay', '0.0')))

@@ -47,6 +47,7 @@ def test_node_command_line_matches_launch_ros(packages):
             remap: [{from: cmd_vel, to: /robot1/cmd_vel_safe}]
             respawn: 'True'
             respawn_delay: '2.5'
+            launch-prefix: xterm -title 'node a' -e
         """)
     system = load_system(launch, {'use_sim_time': 'true'}, find, environ={})
     (node,) = system.nodes
@@ -55,6 +56,7 @@ def test_node_command_line_matches_launch_ros(packages):
         '--params-file', str(params), '-p', 'use_sim_time:=true', '-p', 'speeds:=[1.5, 2.0]',
         '-p', 'label:=two words', '-r', 'cmd_vel:=/robot1/cmd_vel_safe']
     assert node.respawn and node.respawn_delay_s == 2.5 and not node.shutdown_on_exit
+    assert node.launch_prefix == ['xterm', '-title', 'node a', '-e']
     assert system.arguments == {'use_sim_time': 'true'}
 
 
