@@ -62,16 +62,25 @@ class Driver:
 
 
 @pytest.fixture
-def emulated(start_system, test_node, tmp_path):
-    """Start the emulated control system; return (system, test_node, port path)."""
-    test_node.start_clock()
-    port = tmp_path / 'ttyESP32'
-    system = start_system('mecanum_control', 'emulated_control.launch.yaml', f'port:={port}',
-                          'use_sim_time:=true', f'emulator_args:=--tick-offset {TICK_OFFSET}')
-    system.wait_for_line(r'\[hardware_interface\].*Connected to the board')
-    system.wait_for_line(r'\[motor_controller\].*Motor controller started')
-    system.wait_for_line(r'\[velocity_controller\].*control active')
-    return system, test_node, port
+def start_emulated(start_system, test_node, tmp_path):
+    """Start the emulated control system with extra emulator options; wait until it runs."""
+    def start(emulator_args: str = ''):
+        test_node.start_clock()
+        port = tmp_path / 'ttyESP32'
+        system = start_system(
+            'mecanum_control', 'emulated_control.launch.yaml', f'port:={port}',
+            'use_sim_time:=true', f'emulator_args:=--tick-offset {TICK_OFFSET} {emulator_args}')
+        system.wait_for_line(r'\[hardware_interface\].*Connected to the board')
+        system.wait_for_line(r'\[motor_controller\].*Motor controller started')
+        system.wait_for_line(r'\[velocity_controller\].*control active')
+        return system, test_node, port
+    return start
+
+
+@pytest.fixture
+def emulated(start_emulated):
+    """The emulated control system on a clean line: (system, test_node, port path)."""
+    return start_emulated()
 
 
 def steady_twist(odom, seconds=1.0):
@@ -89,8 +98,9 @@ def wheels_still(msg: JointState) -> bool:
     return all(abs(v) < 1e-9 for v in msg.velocity)
 
 
-def test_constant_cmd_vel_moves_the_robot_as_commanded(emulated):
-    system, test_node, _ = emulated
+def test_constant_cmd_vel_moves_the_robot_as_commanded_over_a_noisy_line(start_emulated):
+    # 3 % of the board's frames are lost and 3 % arrive with a flipped bit.
+    system, test_node, _ = start_emulated('--drop-rate 0.03 --corrupt-rate 0.03 --seed 7')
     odom = test_node.record(Odometry, 'odom')
     driver = Driver(test_node)
 
@@ -202,3 +212,59 @@ def test_emergency_stop_holds_the_wheels_until_released_and_commanded_again(emul
     assert future.done() and future.result().success
     # Released: the next cmd_vel (still being published) moves the robot again.
     joints.wait_for_new(lambda m: min(abs(v) for v in m.velocity) > 5.0, timeout=5.0)
+
+
+def test_nan_and_absurd_commands_are_rejected_and_stop_the_robot(emulated):
+    system, test_node, _ = emulated
+    speeds = test_node.record(Float32MultiArray, 'motor_speeds')
+    driver = Driver(test_node)
+    driver.drive(vx=0.3)
+    speeds.wait_for(lambda m: min(m.data) > 5.0, timeout=10.0)
+    for bad in ({'vx': math.nan}, {'wz': math.inf}, {'vy': 1000.0}):
+        time.sleep(1.1)  # the rejection warning is throttled to one per second
+        driver.drive(vx=0.3)
+        speeds.wait_for_new(lambda m: min(m.data) > 5.0, timeout=5.0)
+        driver.drive(**bad)
+        # Not one wheel target is NaN or huge; the robot ramps to a stop.
+        speeds.wait_for_new(lambda m: all(v == 0.0 for v in m.data), timeout=3.0)
+        assert all(all(math.isfinite(v) and abs(v) <= 28.0 for v in m.data)
+                   for m in speeds.since(0.0))
+    output = system.output()
+    assert 'Rejected cmd_vel, stopping: cmd_vel linear.x is nan' in output
+    assert 'Rejected cmd_vel, stopping: cmd_vel angular.z is inf' in output
+    assert 'is absurd' in output
+
+
+def test_a_blocked_wheel_is_detected_and_stopped_while_the_others_run(start_emulated):
+    # The emulated FL wheel cannot turn (stalled motor or unplugged encoder).
+    system, test_node, _ = start_emulated('--block-wheel FL')
+    efforts = test_node.record(Float32MultiArray, 'motor_efforts')
+    driver = Driver(test_node)
+    driver.drive(vx=0.3)
+    system.wait_for_line(r'\[velocity_controller\].*Wheel FL stalled or its encoder is '
+                         'disconnected', timeout=10.0)
+    # FL gets no effort any more; the other wheels keep being driven.
+    time.sleep(0.5)
+    recent = efforts.since(time.monotonic() - 0.4)
+    assert recent and all(m.data[0] == 0.0 for m in recent)
+    assert all(min(m.data[1:]) > 0.1 for m in recent)
+    # A zero target releases the wheel (it is retried on the next command).
+    driver.drive()
+    system.wait_for_line(r'\[velocity_controller\].*Wheel FL released', timeout=5.0)
+
+
+def test_the_board_stops_the_motors_by_itself_when_the_host_hangs(emulated):
+    system, test_node, _ = emulated
+    joints = test_node.record(JointState, 'joint_states')
+    driver = Driver(test_node)
+    driver.drive(vx=0.3)
+    joints.wait_for(lambda m: min(m.velocity) > 5.0, timeout=10.0)
+    host = system.node_pid('hardware_interface')
+    os.kill(host, signal.SIGSTOP)  # the host hangs: no more effort frames
+    try:
+        system.wait_for_line(r'\[board_emulator\].*no effort command within 250 ms: motors '
+                             'stopped', timeout=3.0)
+    finally:
+        os.kill(host, signal.SIGCONT)
+    system.wait_for_line(r'\[board_emulator\].*effort commands resumed', timeout=5.0)
+    joints.wait_for_new(lambda m: min(m.velocity) > 5.0, timeout=5.0)

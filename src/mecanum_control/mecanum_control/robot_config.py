@@ -84,7 +84,7 @@ def _check(name: str, kind: str, value: Any) -> Any:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise RobotConfigError(f'robot parameter {name} must be a number, got {value!r}')
     if kind == 'int':
-        if float(value) != int(value):
+        if not float(value).is_integer():  # also rejects NaN and inf (int() would raise)
             raise RobotConfigError(f'robot parameter {name} must be an integer, got {value!r}')
         value = int(value)
     else:

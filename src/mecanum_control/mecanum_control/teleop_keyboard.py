@@ -11,7 +11,8 @@ Parameters: ``speed_m_s`` (0.3) and ``turn_rad_s`` (1.0) are the starting speeds
 ``max_speed_m_s`` (0.8) and ``max_turn_rad_s`` (2.5) bound them; ``repeat_rate_hz``
 (10.0) republishes a non-zero twist so motor_controller's command timeout does not stop
 the robot while a key is held; with no key for ``key_timeout_s`` (0.8, longer than a
-terminal's auto-repeat delay) the twist becomes zero (a lost terminal stops the robot); ``stamped`` (false), ``frame_id`` (base_link).
+terminal's auto-repeat delay) the twist becomes zero (a lost terminal stops the
+robot); ``stamped`` (false), ``frame_id`` (base_link).
 
 Needs an interactive terminal: without one it exits with code 2. Ctrl-C, end of input,
 SIGINT, SIGTERM and SIGHUP publish a zero twist, restore the terminal and exit.

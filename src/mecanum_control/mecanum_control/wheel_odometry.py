@@ -93,7 +93,9 @@ class WheelOdometry:
         if seq_step == 0:
             self.rejected_samples += 1
             return SampleResult('duplicate', detail=f'sequence {sample.sequence} repeated')
-        if seq_step < -RESET_BACKWARDS_SAMPLES or (seq_step < 0 and dt_us < -1_000_000):
+        # The clock alone decides too: hardware_interface keeps its sequence counting on
+        # across a board restart, so only the clock goes back.
+        if seq_step < -RESET_BACKWARDS_SAMPLES or dt_us < -1_000_000:
             self.resets += 1
             self._rebaseline(sample)
             return SampleResult('reset', detail=f'board restarted (sequence {last.sequence} '
