@@ -24,6 +24,8 @@ from mecanum_control.kinematics import (
 U32 = 1 << 32
 #: A sequence or clock jump further back than this is a board reset, not a stale sample.
 RESET_BACKWARDS_SAMPLES = 1000
+#: Longest time over which wheel travel is bounded by the wheel speed limit (s).
+MOTION_WINDOW_S = 1.0
 
 
 def wrapped_delta(previous: int, current: int, modulus: int = U32) -> int:
@@ -106,8 +108,12 @@ class WheelOdometry:
                                 f'{last.sequence}, board clock step {dt_us} us')
         dt_s = dt_us * 1e-6
         deltas = [wrapped_delta(a, b) for a, b in zip(last.ticks, sample.ticks)]
-        limit = self.max_wheel_speed_rad_s * 2.0 * dt_s / self.rad_per_count
-        limit += self.glitch_margin_counts
+        # Plausible travel: twice the wheel speed limit over the step, but over at most
+        # MOTION_WINDOW_S: a link gap longer than that means the board stopped the motors
+        # by its command timeout, and a board restarted after a long uptime (its clock
+        # wrapped, so the clock seems to jump forward) is caught as a glitch.
+        limit = (self.max_wheel_speed_rad_s * 2.0 * min(dt_s, MOTION_WINDOW_S)
+                 / self.rad_per_count + self.glitch_margin_counts)
         worst = max(abs(d) for d in deltas)
         if worst > limit:
             self.rejected_samples += 1

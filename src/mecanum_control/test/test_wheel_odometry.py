@@ -531,6 +531,38 @@ def test_glitch_on_a_gap_scales_with_elapsed_time():
     assert results[1].status == 'glitch'
 
 
+def test_restart_after_a_long_uptime_is_a_glitch_not_motion():
+    """
+    A board restarted after a long uptime moves nothing.
+
+    After 40 min its u32 clock has wrapped, so the clock seems to jump forward ~1295 s
+    while the counters drop from ~5e6 back near 0. Travel is bounded over at most 1 s:
+    2 * 20 rad/s * 1 s / (2 pi / 1000) + 8 = 6374 counts, far below a 5e6-count drop,
+    so the pose must not move.
+    """
+    odometry = make_odometry()
+    start = (5_000_000, 5_000_000, 5_000_000, 5_000_000)
+    feed(odometry, constant_rate_samples((0, 0, 0, 0), 3, ticks0=start))
+    pose = odometry.pose
+    restarted = EncoderSample(104, 1_060_000 + 1_295_000_000, (12, 12, 12, 12))
+    assert odometry.update(restarted).status == 'glitch'
+    assert odometry.pose == pose
+
+
+def test_long_gap_with_plausible_travel_keeps_the_distance():
+    """
+    A long link gap keeps the distance travelled in it.
+
+    3 s during which the wheels turned 1000 counts (one turn, 0.1 pi m): within the
+    6374-count bound, so the distance is kept (counters are absolute).
+    """
+    odometry = make_odometry()
+    feed(odometry, constant_rate_samples((0, 0, 0, 0), 1))
+    result = odometry.update(EncoderSample(252, 1_020_000 + 3_000_000, (1000, 1000, 1000, 1000)))
+    assert result.status == 'gap' and result.lost == 150
+    assert odometry.pose[0] == pytest.approx(1000 * RAD_PER_COUNT * 0.05)
+
+
 def glitch_run(persistent):
     """
     Straight line; at sample 11 FL jumps by +100000 counts (100 turns in 20 ms).
