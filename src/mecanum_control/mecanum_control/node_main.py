@@ -4,13 +4,15 @@ The standard ``main()`` of the mecanum_control nodes.
 rclpy's own signal handler would shut the context down before a node could send its
 final zero command, so SIGINT (Ctrl-C) and SIGTERM are turned into KeyboardInterrupt
 and the node's ``close()`` (if it has one) runs while the context is still valid.
-A parameter error (ValueError) is logged as fatal and gives exit code 2.
+A parameter error (bad value or type, unreadable parameter file) is logged as fatal
+and gives exit code 2, without a traceback.
 """
 
 import signal
 from typing import Callable, List, Optional
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -23,11 +25,15 @@ def _raise_keyboard_interrupt(_signum, _frame):
 def run_node(node_factory: Callable[[], Node], name: str,
              args: Optional[List[str]] = None) -> int:
     """Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RuntimeError as error:  # rcl failed, e.g. a parameter file that is not YAML
+        rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+        return 2
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     try:
         node = node_factory()
-    except ValueError as error:
+    except (ValueError, ParameterException) as error:
         rclpy.logging.get_logger(name).fatal(f'{error}')
         rclpy.try_shutdown()
         return 2
