@@ -148,11 +148,16 @@ def test_stopping_cmd_vel_brings_every_wheel_to_zero_within_the_timeout(emulated
 
     driver.stop_publishing()
     stopped_at = time.monotonic()
-    # cmd_timeout_s 0.5 s, then a ramp at the acceleration limits (0.4 m/s at 1.5 m/s^2),
-    # then the wheels coast down with the motor time constant.
+    # Expected: cmd_timeout_s 0.5 s, a ramp at the acceleration limits (0.4 m/s at
+    # 1.5 m/s^2: 0.27 s), the wheels' decay (tau 0.08 s) from ~10 rad/s to below one count
+    # per 60 ms velocity window (0.08 rad/s): 0.08 * ln(125) = 0.39 s, plus transport:
+    # about 1.2 s. Allow 2 s on a loaded machine.
     speeds.wait_for_new(lambda m: all(v == 0.0 for v in m.data), timeout=2.0)
+    targets_zero_s = time.monotonic() - stopped_at
     joints.wait_for_new(wheels_still, timeout=3.0)
-    assert time.monotonic() - stopped_at < 2.5
+    wheels_still_s = time.monotonic() - stopped_at
+    print(f'targets zero after {targets_zero_s:.2f} s, wheels still after {wheels_still_s:.2f} s')
+    assert wheels_still_s < 2.0
     system.wait_for_line(r'\[motor_controller\].*No cmd_vel within the timeout')
     # And they stay still.
     time.sleep(1.0)
