@@ -21,6 +21,7 @@ import os
 from pathlib import Path
 import random
 import select
+import shlex
 import signal
 import sys
 import time
@@ -204,6 +205,9 @@ def parse_args(argv: List[str]) -> argparse.Namespace:
     """Parse the command line (anything from --ros-args on is ignored)."""
     if '--ros-args' in argv:
         argv = argv[:argv.index('--ros-args')]
+    # ros2 launch passes a substitution such as $(var emulator_args) as ONE argument, even
+    # when empty or holding several options: split them as a shell would.
+    argv = [part for arg in argv for part in shlex.split(arg)]
     parser = argparse.ArgumentParser(prog='board_emulator', description=__doc__.split('\n')[1])
     parser.add_argument('--link', required=True, type=Path,
                         help='symlink to create for the pty device, e.g. /tmp/ttyESP32')

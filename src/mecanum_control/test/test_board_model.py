@@ -2,6 +2,7 @@
 
 import math
 
+from mecanum_control.board_emulator import parse_args
 from mecanum_control.board_model import (
     BoardModel, MotorModel, STANDARD_GRAVITY_M_S2, to_int32, Wheel)
 from mecanum_control.esp32_protocol import FaultFlags
@@ -408,3 +409,10 @@ def test_imu_noise_is_added_to_every_axis():
         for noisy_value, clean_value in zip(noisy_axes, clean_axes):
             assert noisy_value != clean_value
             assert abs(noisy_value - clean_value) < 6 * sigma
+
+
+def test_emulator_arguments_from_ros2_launch_are_split_like_a_shell():
+    """ros2 launch passes '$(var emulator_args)' as one (maybe empty) argument."""
+    args = parse_args(['--link', '/tmp/x', '', '--tick-offset 5 --block-wheel FL',
+                       '--ros-args', '-r', '__node:=board_emulator'])
+    assert (args.tick_offset, args.block_wheel, str(args.link)) == (5, ['FL'], '/tmp/x')
