@@ -19,7 +19,7 @@ from geometry_msgs.msg import Twist
 from mecanum_control.kinematics import yaw_from_quaternion
 from nav_msgs.msg import Odometry
 import pytest
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, Float32MultiArray
 from std_srvs.srv import Trigger
 
@@ -102,6 +102,7 @@ def test_constant_cmd_vel_moves_the_robot_as_commanded_over_a_noisy_line(start_e
     # 3 % of the board's frames are lost and 3 % arrive with a flipped bit.
     system, test_node, _ = start_emulated('--drop-rate 0.03 --corrupt-rate 0.03 --seed 7')
     odom = test_node.record(Odometry, 'odom')
+    imu = test_node.record(Imu, 'imu/data_raw')
     driver = Driver(test_node)
 
     driver.drive(vx=0.3, vy=0.15)
@@ -129,6 +130,13 @@ def test_constant_cmd_vel_moves_the_robot_as_commanded_over_a_noisy_line(start_e
     yaw1 = yaw_from_quaternion(*_quaternion(odom.latest()))
     turned = math.remainder(yaw1 - yaw0, 2 * math.pi)
     assert turned == pytest.approx(1.0, rel=0.1)
+    # The board's gyro sees the same rotation; the IMU message says it has no orientation.
+    sample = imu.latest()
+    assert sample.header.frame_id == 'imu_link'
+    assert sample.angular_velocity.z == pytest.approx(1.0, rel=0.1)
+    assert sample.linear_acceleration.z == pytest.approx(9.80665, abs=0.01)
+    assert sample.orientation_covariance[0] == -1.0
+    assert sample.angular_velocity_covariance[0] == pytest.approx(0.005 ** 2)
     # The counters crossed the int32 wrap on the way (TICK_OFFSET) without a jump.
     assert 'glitch' not in system.output() and 'reset' not in system.output()
 

@@ -4,8 +4,9 @@ hardware_interface: the serial link to the ESP32 motor board (protocol: doc/esp3
 Subscribes ``motor_efforts`` (std_msgs/Float32MultiArray, PWM duty -1..1, FL FR RL RR)
 and sends them to the board at once, and again at ``command_rate_hz`` as keep-alive.
 Publishes what the board reports: ``wheel_ticks`` (mecanum_interfaces/WheelTicks),
-``imu/data_raw`` (sensor_msgs/Imu: angular velocity and linear acceleration, no
-orientation) and ``/diagnostics`` (link state, board faults, frame statistics).
+``imu/data_raw`` (sensor_msgs/Imu: angular velocity and linear acceleration with
+covariances from the ``imu_*_stddev_*`` parameters, no orientation) and
+``/diagnostics`` (link state, board faults, frame statistics).
 
 Safety: efforts older than ``effort_timeout_s`` (steady clock) are replaced by zero;
 on link loss (read error, port gone, or no valid frame for ``link_timeout_s``) the
@@ -53,6 +54,14 @@ class HardwareInterface(Node):
             'command_rate_hz', self.declare_parameter('command_rate_hz', 50.0).value)
         self.imu_frame_id = self.declare_parameter('imu_frame_id', 'imu_link').value
         self.base_frame_id = self.declare_parameter('base_frame_id', 'base_link').value
+        gyro_stddev = positive('imu_angular_velocity_stddev_rad_s', self.declare_parameter(
+            'imu_angular_velocity_stddev_rad_s', 0.005).value)
+        accel_stddev = positive('imu_linear_acceleration_stddev_m_s2', self.declare_parameter(
+            'imu_linear_acceleration_stddev_m_s2', 0.05).value)
+        self.gyro_covariance = [gyro_stddev ** 2, 0.0, 0.0, 0.0, gyro_stddev ** 2, 0.0,
+                                0.0, 0.0, gyro_stddev ** 2]
+        self.accel_covariance = [accel_stddev ** 2, 0.0, 0.0, 0.0, accel_stddev ** 2, 0.0,
+                                 0.0, 0.0, accel_stddev ** 2]
         self.keepalive_s = 1.0 / command_rate_hz
         if self.keepalive_s * 1000 >= self.board_command_timeout_ms:
             raise ValueError(f'command_rate_hz {command_rate_hz} is too slow for the board '
@@ -235,6 +244,8 @@ class HardwareInterface(Node):
             msg.header.stamp = stamp
             msg.header.frame_id = self.imu_frame_id
             msg.orientation_covariance[0] = -1.0  # no orientation estimate
+            msg.angular_velocity_covariance = self.gyro_covariance
+            msg.linear_acceleration_covariance = self.accel_covariance
             (msg.linear_acceleration.x, msg.linear_acceleration.y,
              msg.linear_acceleration.z) = (float(a) for a in message.accel_m_s2)
             (msg.angular_velocity.x, msg.angular_velocity.y,
