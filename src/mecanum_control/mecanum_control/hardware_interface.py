@@ -6,13 +6,17 @@ and sends them to the board at once, and again at ``command_rate_hz`` as keep-al
 Publishes what the board reports: ``wheel_ticks`` (mecanum_interfaces/WheelTicks),
 ``imu/data_raw`` (sensor_msgs/Imu: angular velocity and linear acceleration with
 covariances from the ``imu_*_stddev_*`` parameters, no orientation) and
-``/diagnostics`` (link state, board faults, frame statistics).
+``/diagnostics`` (link state, board faults, frame statistics). Service
+``~/clear_board_faults`` (std_srvs/Trigger) asks the board to clear latched faults.
 
 Safety: efforts older than ``effort_timeout_s`` (steady clock) are replaced by zero;
 on link loss (read error, port gone, or no valid frame for ``link_timeout_s``) the
 stored command is zeroed and the node reopens ``port`` every ``reconnect_period_s``;
-after a reconnect only efforts received after it are sent. The board itself stops
-the motors when commands stop for ``board_command_timeout_ms`` (motor_params.yaml).
+after a reconnect only efforts received after it are sent. A zero command is written
+before the port is closed when it still takes one; the board itself stops the motors
+when commands stop for ``board_command_timeout_ms`` (motor_params.yaml). The link's
+timers run on the steady clock whatever ROS time is. A board that never answers is
+retried quietly after one error message.
 """
 
 import math
@@ -27,12 +31,16 @@ from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.wheel_odometry import wrapped_delta
 from mecanum_interfaces.msg import WheelTicks
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 import serial
 from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
 
 ZERO_EFFORTS = (0.0, 0.0, 0.0, 0.0)
+#: Messages only the board sends: receiving them proves the board is alive.
+BOARD_MESSAGES = (proto.EncoderTicks, proto.ImuSample, proto.BoardStatus)
 
 
 class HardwareInterface(Node):
@@ -67,16 +75,21 @@ class HardwareInterface(Node):
             raise ValueError(f'command_rate_hz {command_rate_hz} is too slow for the board '
                              f'timeout of {self.board_command_timeout_ms} ms')
 
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # state shared with the serial reader thread
+        self._io_lock = threading.Lock()  # one writer at a time; no close during a write
         self._serial: Optional[serial.Serial] = None
         self._connected_at = 0.0
         self._last_frame_at = 0.0
         self._last_sent_at = 0.0
+        self._frames_this_connection = 0
+        self._quiet = False  # the board does not answer: retry without repeating logs
         self._efforts = ZERO_EFFORTS
         self._efforts_at = -math.inf
-        self._tx_seq = 0
+        self._tx_seq = {}  # one counter per message type (doc/esp32_protocol.md)
         self._decoder = proto.FrameDecoder()
         self._trackers = {}
+        self._totals = {'frames_ok': 0, 'frame_errors': 0, 'frames_lost': 0}
+        self._reported_wrong_version = 0
         self._ticks_sequence = 0
         self._last_ticks_seq: Optional[int] = None
         self._last_board_time_us: Optional[int] = None
@@ -91,15 +104,23 @@ class HardwareInterface(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.efforts_sub = self.create_subscription(
             Float32MultiArray, 'motor_efforts', self.on_efforts, 10)
-        self.command_timer = self.create_timer(self.keepalive_s, self.on_command_timer)
-        self.connect_timer = self.create_timer(self.reconnect_period_s, self.on_connect_timer)
-        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        self.clear_faults_srv = self.create_service(Trigger, '~/clear_board_faults',
+                                                    self.on_clear_faults)
+        # The link is real time whatever ROS time is: its timers use the steady clock.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.command_timer = self.create_timer(self.keepalive_s, self.on_command_timer,
+                                               clock=steady)
+        self.link_timer = self.create_timer(self.link_timeout_s / 4, self.check_link,
+                                            clock=steady)
+        self.connect_timer = self.create_timer(self.reconnect_period_s, self.connect,
+                                               clock=steady)
+        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics, clock=steady)
         self._reader = threading.Thread(target=self._read_loop, name='serial_reader',
                                         daemon=True)
         self._reader.start()
         self.get_logger().info(f'Hardware interface started, board at {self.port} '
                                f'(protocol v{proto.PROTOCOL_VERSION})')
-        self.on_connect_timer()
+        self.connect()
 
     # Commands to the board -------------------------------------------------------------
     def on_efforts(self, msg: Float32MultiArray) -> None:
@@ -123,54 +144,96 @@ class HardwareInterface(Node):
         if time.monotonic() - self._last_sent_at >= 0.9 * self.keepalive_s:
             self._send_efforts()
 
+    def on_clear_faults(self, _request, response):
+        """Ask the board to clear its latched faults (those whose cause has gone)."""
+        response.success = self._send(proto.ClearFaults(proto.FaultFlags(0xFFFF)))
+        response.message = ('clear request sent; see /diagnostics for the board faults'
+                            if response.success else f'not connected to {self.port}')
+        self.get_logger().info(f'Clear board faults: {response.message}')
+        return response
+
     def _send_efforts(self) -> None:
         now = time.monotonic()
         with self._lock:
-            port = self._serial
             fresh = (now - self._efforts_at <= self.effort_timeout_s
                      and self._efforts_at > self._connected_at)
             efforts = self._efforts if fresh else ZERO_EFFORTS
-            seq = self._tx_seq
-            self._tx_seq = (seq + 1) % (1 << 16)
-        if port is None:
-            return
-        frame = proto.encode_frame(proto.MotorEfforts(efforts, self.board_command_timeout_ms),
-                                   seq)
-        try:
-            port.write(frame)
+        if self._send(proto.MotorEfforts(efforts, self.board_command_timeout_ms)):
             self._last_sent_at = now
-        except (serial.SerialException, OSError) as error:
-            self._lose_link(port, f'write failed: {error}')
 
-    # Connection management -------------------------------------------------------------
-    def on_connect_timer(self) -> None:
-        """Open the port when not connected; drop a silent link."""
+    def _next_seq(self, message: proto.Message) -> int:
+        """Return the next sequence number of this message type (call with _lock held)."""
+        msg_type = proto.message_type_of(message)
+        seq = self._tx_seq.get(msg_type, 0)
+        self._tx_seq[msg_type] = (seq + 1) % (1 << 16)
+        return seq
+
+    def _send(self, message: proto.Message) -> bool:
+        """Write one frame to the board; return whether it was written."""
         with self._lock:
             port = self._serial
-        if port is not None:
-            silent_s = time.monotonic() - max(self._last_frame_at, self._connected_at)
-            if silent_s > self.link_timeout_s:
-                self._lose_link(port, f'no valid frame from the board for {silent_s:.2f} s')
+            if port is None:
+                return False
+            frame = proto.encode_frame(message, self._next_seq(message))
+        try:
+            with self._io_lock:
+                if self._serial is not port:
+                    return False  # the link was dropped meanwhile
+                port.write(frame)
+        except (serial.SerialException, OSError, TypeError, ValueError) as error:
+            self._lose_link(port, f'write failed: {error}')
+            return False
+        return True
+
+    # Connection management -------------------------------------------------------------
+    def connect(self) -> None:
+        """Open the port when not connected (reconnect timer)."""
+        if self._serial is not None:
             return
         try:
             port = serial.Serial(self.port, self.baud_rate, timeout=0.05, write_timeout=0.1)
-            port.reset_input_buffer()
-            port.write(b'\x00')  # delimiter: the board starts decoding at a clean frame
         except (serial.SerialException, OSError, ValueError) as error:
             if self._disconnect_reason != str(error):
                 self._disconnect_reason = str(error)
                 self.get_logger().warning(f'Cannot open {self.port}: {error}; retrying every '
                                           f'{self.reconnect_period_s} s')
             return
+        try:
+            port.reset_input_buffer()
+            port.write(b'\x00')  # delimiter: the board starts decoding at a clean frame
+        except (serial.SerialException, OSError) as error:
+            port.close()
+            self._disconnect_reason = str(error)
+            return
         with self._lock:
+            self._add_totals()
             self._serial = port
             self._connected_at = time.monotonic()
+            self._frames_this_connection = 0
             self._decoder = proto.FrameDecoder()
             self._trackers = {}
             self._last_board_time_us = None
-        self.get_logger().info(f'Connected to the board at {self.port}')
+        log = self.get_logger().debug if self._quiet else self.get_logger().info
+        log(f'Connected to the board at {self.port}')
         self._send_efforts()  # zero: nothing was commanded since this connection
         self.publish_diagnostics()
+
+    def check_link(self) -> None:
+        """Drop the link when the board has been silent for link_timeout_s."""
+        port = self._serial
+        if port is None:
+            return
+        silent_s = time.monotonic() - max(self._last_frame_at, self._connected_at)
+        if silent_s > self.link_timeout_s:
+            self._lose_link(port, f'no valid frame from the board for {silent_s:.2f} s')
+
+    def _add_totals(self) -> None:
+        """Fold the current connection's counters into the totals (call with _lock held)."""
+        self._totals['frames_ok'] += self._decoder.stats.frames_ok
+        self._totals['frame_errors'] += self._decoder.stats.errors
+        self._totals['frames_lost'] += sum(t.lost for t in self._trackers.values())
+        self._decoder = proto.FrameDecoder()
+        self._trackers = {}
 
     def _lose_link(self, port: serial.Serial, reason: str) -> None:
         with self._lock:
@@ -178,50 +241,85 @@ class HardwareInterface(Node):
                 return  # already handled
             self._serial = None
             self._efforts = ZERO_EFFORTS
+            self._efforts_at = -math.inf
             self._disconnect_reason = reason
             self._link_losses += 1
-        try:
-            port.close()
-        except (serial.SerialException, OSError):
-            pass
-        self.get_logger().error(f'Link to the board at {self.port} lost ({reason}); motors '
-                                'commanded zero, the board stops by its own timeout; '
-                                'reconnecting')
+            answered = self._frames_this_connection > 0
+            stop = proto.MotorEfforts(ZERO_EFFORTS, self.board_command_timeout_ms)
+            zero = proto.encode_frame(stop, self._next_seq(stop))
+        with self._io_lock:
+            try:
+                port.write(zero)  # best effort: the board's own timeout is the guarantee
+            except (serial.SerialException, OSError, TypeError, ValueError):
+                pass
+            try:
+                port.close()
+            except (serial.SerialException, OSError, TypeError):
+                pass
+        if answered:
+            self._quiet = False
+            self.get_logger().error(
+                f'Link to the board at {self.port} lost ({reason}); zero sent if the port '
+                'still took it, the board stops by its own timeout; reconnecting')
+        elif not self._quiet:
+            self._quiet = True
+            self.get_logger().error(
+                f'The board at {self.port} does not answer ({reason}); retrying every '
+                f'{self.reconnect_period_s} s without repeating this message')
         self.publish_diagnostics()
 
     # Board reports -------------------------------------------------------------------
     def _read_loop(self) -> None:
         while not self._stop.is_set():
-            with self._lock:
-                port = self._serial
+            port = self._serial
             if port is None:
                 time.sleep(0.02)
                 continue
             try:
                 data = port.read(max(1, port.in_waiting))
-            except (serial.SerialException, OSError, TypeError) as error:
+            except (serial.SerialException, OSError, TypeError, AttributeError) as error:
                 self._lose_link(port, f'read failed: {error}')
                 continue
             if not data:
                 continue
-            with self._lock:
-                frames = self._decoder.feed(data)
-            for frame in frames:
+            try:
+                self._receive(data)
+            except Exception as error:  # noqa: B902 - never let the reader die silently
+                self.get_logger().error(f'Unexpected error handling board data: {error!r}')
+                self._lose_link(port, f'internal error: {error!r}')
+
+    def _receive(self, data: bytes) -> None:
+        with self._lock:
+            frames = self._decoder.feed(data)
+            wrong_version = self._decoder.stats.wrong_version
+            other_version = self._decoder.stats.last_wrong_version
+        if wrong_version > self._reported_wrong_version:
+            self._reported_wrong_version = wrong_version
+            self.get_logger().error(
+                f'The board speaks protocol v{other_version}, this node v'
+                f'{proto.PROTOCOL_VERSION}: its frames are dropped; update the firmware or '
+                'this package', throttle_duration_sec=5.0)
+        for frame in frames:
+            if isinstance(frame.message, BOARD_MESSAGES):  # an echo of ours is not life
+                if self._quiet:
+                    self._quiet = False
+                    self.get_logger().info(f'The board at {self.port} answers')
                 self._last_frame_at = time.monotonic()
+                self._frames_this_connection += 1
                 self._handle(frame)
 
     def _handle(self, frame: proto.Frame) -> None:
         message = frame.message
-        board_time_us = getattr(message, 'board_time_us', None)
-        if board_time_us is not None:
+        board_time_us = message.board_time_us
+        with self._lock:
             last = self._last_board_time_us
             if last is not None and wrapped_delta(last, board_time_us) < -1_000_000:
                 self.get_logger().warning('Board clock went back: the board restarted')
                 self._trackers = {}
             self._last_board_time_us = board_time_us
-        # One sequence counter per message type (doc/esp32_protocol.md).
-        tracker = self._trackers.setdefault(type(message), proto.SequenceTracker())
-        status = tracker.update(frame.seq)
+            # One sequence counter per message type (doc/esp32_protocol.md).
+            tracker = self._trackers.setdefault(type(message), proto.SequenceTracker())
+            status = tracker.update(frame.seq)
         if status in ('duplicate', 'stale'):
             return
         stamp = self.get_clock().now().to_msg()
@@ -251,7 +349,7 @@ class HardwareInterface(Node):
             (msg.angular_velocity.x, msg.angular_velocity.y,
              msg.angular_velocity.z) = (float(g) for g in message.gyro_rad_s)
             self.imu_pub.publish(msg)
-        elif isinstance(message, proto.BoardStatus):
+        else:
             self._board_status = message
             new_faults = message.faults & ~self._last_faults
             if new_faults:
@@ -264,6 +362,10 @@ class HardwareInterface(Node):
         with self._lock:
             connected = self._serial is not None
             stats = self._decoder.stats
+            totals = dict(self._totals)
+            totals['frames_ok'] += stats.frames_ok
+            totals['frame_errors'] += stats.errors
+            totals['frames_lost'] += sum(t.lost for t in self._trackers.values())
         status = DiagnosticStatus(name='mecanum_control: ESP32 link', hardware_id=self.port)
         board = self._board_status
         if not connected:
@@ -275,11 +377,8 @@ class HardwareInterface(Node):
         else:
             status.level = DiagnosticStatus.OK
             status.message = 'connected'
-        lost = sum(t.lost for t in self._trackers.values())
-        values = {'port': self.port, 'link_losses': self._link_losses,
-                  'frames_ok': stats.frames_ok, 'frames_lost': lost,
-                  'bad_crc': stats.bad_crc, 'bad_cobs': stats.bad_cobs,
-                  'wrong_version': stats.wrong_version}
+        values = dict({'port': self.port, 'link_losses': self._link_losses}, **totals)
+        values['wrong_version_frames'] = self._reported_wrong_version
         if board is not None:
             values.update(battery_mv=board.battery_mv, board_rx_bad_frames=board.rx_bad_frames,
                           board_faults=proto.describe_faults(board.faults))
@@ -298,7 +397,8 @@ class HardwareInterface(Node):
         with self._lock:
             port, self._serial = self._serial, None
         if port is not None:
-            port.close()
+            with self._io_lock:
+                port.close()
 
 
 def main(args=None) -> int:

@@ -1,0 +1,220 @@
+"""
+Integration: hardware_interface (a real process) against a scripted board on a real pty.
+
+The test plays the ESP32 itself, frame by frame, with the shared protocol code, to
+reach the cases the emulator does not produce: a board that stops talking, one that
+only echoes, one speaking another protocol version, and the clear-faults request.
+"""
+
+import os
+from pathlib import Path
+import re
+import signal
+import struct
+import subprocess
+import threading
+import time
+import tty
+
+from mecanum_control import esp32_protocol as proto
+import pytest
+from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
+
+pytestmark = pytest.mark.integration
+REPO = Path(__file__).resolve().parents[1]
+
+
+class ScriptedBoard:
+    """The board side of a pty: records every frame the host sends, sends what it is told."""
+
+    def __init__(self, link: Path):
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        os.symlink(os.ttyname(self._slave), link)
+        self.received = []
+        self._lock = threading.Lock()
+        self._decoder = proto.FrameDecoder()
+        self._seq = {}
+        self._running = True
+        self.talking = True
+        threading.Thread(target=self._read, daemon=True).start()
+        threading.Thread(target=self._heartbeat, daemon=True).start()
+
+    def _read(self):
+        while self._running:
+            try:
+                data = os.read(self.master, 4096)
+            except OSError:
+                return
+            with self._lock:
+                self.received += [(time.monotonic(), f) for f in self._decoder.feed(data)]
+
+    def _heartbeat(self):
+        """Send status and ticks at 50 Hz while talking."""
+        start = time.monotonic()
+        while self._running:
+            if self.talking:
+                board_time_us = int((time.monotonic() - start) * 1e6)
+                self.send(proto.BoardStatus(board_time_us, proto.FaultFlags(0), 12000, 0, 0))
+                self.send(proto.EncoderTicks(board_time_us, (0, 0, 0, 0)))
+            time.sleep(0.02)
+
+    def send(self, message):
+        """Send one frame, numbered per message type."""
+        msg_type = proto.message_type_of(message)
+        seq = self._seq.get(msg_type, 0)
+        self._seq[msg_type] = seq + 1
+        self.write(proto.encode_frame(message, seq))
+
+    def write(self, data: bytes):
+        """Write raw bytes to the host."""
+        try:
+            os.write(self.master, data)
+        except OSError:
+            pass
+
+    def frames(self, kind, since=0.0):
+        """Frames of one message class received from the host since a monotonic time."""
+        with self._lock:
+            return [f for t, f in self.received if t >= since and isinstance(f.message, kind)]
+
+    def close(self):
+        """Stop the threads and close the pty."""
+        self._running = False
+        os.close(self.master)
+        os.close(self._slave)
+
+
+class HostProcess:
+    """hardware_interface started with ./mecanum run, its output collected."""
+
+    def __init__(self, env, link: Path):
+        self.process = subprocess.Popen(
+            ['./mecanum', 'run', 'mecanum_control', 'hardware_interface', '--ros-args',
+             '-p', f'port:={link}', '-p', 'link_timeout_s:=0.4', '-p',
+             'reconnect_period_s:=0.3'], cwd=REPO, env=env, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        self.lines = []
+        threading.Thread(target=self._collect, daemon=True).start()
+
+    def _collect(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip())
+
+    def count(self, pattern: str) -> int:
+        """Number of output lines matching pattern."""
+        return sum(1 for line in list(self.lines) if re.search(pattern, line))
+
+    def wait_for(self, pattern: str, count: int = 1, timeout: float = 10.0):
+        """Wait until `count` lines match pattern."""
+        deadline = time.monotonic() + timeout
+        while self.count(pattern) < count:
+            assert time.monotonic() < deadline, (
+                f'{pattern!r} x{count} not seen; output:\n' + '\n'.join(self.lines))
+            time.sleep(0.05)
+
+    def stop(self) -> int:
+        """Ctrl-C the node; return its exit code."""
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGINT)
+        try:
+            return self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.process.pid, signal.SIGKILL)
+            raise
+
+
+@pytest.fixture
+def link_setup(ros_env, test_node, tmp_path):
+    """A scripted board on a pty and a running hardware_interface connected to it."""
+    link = tmp_path / 'ttyESP32'
+    board = ScriptedBoard(link)
+    host = HostProcess(ros_env, link)
+    try:
+        host.wait_for('Connected to the board')
+        yield board, host, test_node
+    finally:
+        host.stop()
+        board.close()
+
+
+def wait_until(predicate, timeout=5.0):
+    """Poll predicate until true or fail."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, 'condition not met in time'
+        time.sleep(0.02)
+
+
+def test_silent_board_gets_a_zero_and_is_retried_without_log_spam(link_setup):
+    board, host, test_node = link_setup
+    efforts = test_node.node.create_publisher(Float32MultiArray, 'motor_efforts', 10)
+    stop_feeding = threading.Event()
+
+    def feed():
+        while not stop_feeding.is_set():
+            efforts.publish(Float32MultiArray(data=[0.5, -0.5, 0.5, -0.5]))
+            time.sleep(0.02)
+    threading.Thread(target=feed, daemon=True).start()
+    wait_until(lambda: any(f.message.efforts[0] == 0.5
+                           for f in board.frames(proto.MotorEfforts)))
+
+    board.talking = False  # the board hangs but still listens
+    silent_at = time.monotonic()
+    host.wait_for('Link to the board .* lost .*no valid frame')
+    # link_timeout_s 0.4 s, checked every 0.1 s: detected well within a second.
+    assert time.monotonic() - silent_at < 1.5
+    # The last command before the port closed was an explicit zero.
+    before_reconnect = board.frames(proto.MotorEfforts, since=silent_at)
+    zero_index = next(i for i, f in enumerate(before_reconnect)
+                      if f.message.efforts == (0.0, 0.0, 0.0, 0.0))
+    assert all(f.message.efforts == (0.5, -0.5, 0.5, -0.5)
+               for f in before_reconnect[:zero_index])
+    assert board.frames(proto.MotorEfforts)[-1].message.efforts == (0.0, 0.0, 0.0, 0.0)
+    time.sleep(3.0)  # ten reconnect attempts to a board that does not answer
+    assert host.count('does not answer') == 1
+    assert host.count('Link to the board .* lost') == 1
+    # After reconnecting, old efforts are never resent: only zeros reach the board.
+    stop_feeding.set()
+    board.talking = True
+    host.wait_for('The board at .* answers')
+    quiet_since = time.monotonic()
+    time.sleep(0.5)
+    assert all(f.message.efforts == (0.0, 0.0, 0.0, 0.0)
+               for f in board.frames(proto.MotorEfforts, since=quiet_since))
+
+
+def test_echoes_and_other_protocol_versions_do_not_count_as_a_live_board(link_setup):
+    board, host, _ = link_setup
+    board.talking = False
+    stop = threading.Event()
+
+    def babble():
+        body = struct.pack('<BBH', 2, proto.MessageType.BOARD_STATUS, 0) + bytes(12)
+        alien = proto.cobs_encode(body + struct.pack('<H', proto.crc16_ccitt(body))) + b'\0'
+        while not stop.is_set():
+            board.write(proto.encode_frame(
+                proto.MotorEfforts((0.1, 0.1, 0.1, 0.1), 250), 1))  # our own echo
+            board.write(alien)  # a version 2 firmware
+            time.sleep(0.02)
+    threading.Thread(target=babble, daemon=True).start()
+    try:
+        host.wait_for(r'The board speaks protocol v2, this node v1')
+        host.wait_for('Link to the board .* lost .*no valid frame')
+    finally:
+        stop.set()
+
+
+def test_clear_board_faults_service_sends_the_request(link_setup):
+    board, host, test_node = link_setup
+    client = test_node.node.create_client(Trigger, '/hardware_interface/clear_board_faults')
+    assert client.wait_for_service(timeout_sec=10.0)
+    future = client.call_async(Trigger.Request())
+    wait_until(future.done)
+    assert future.result().success, future.result().message
+    wait_until(lambda: board.frames(proto.ClearFaults))
+    assert board.frames(proto.ClearFaults)[0].message.faults == 0xFFFF
+    assert host.stop() == 0
+    # Shutting down sent a final zero.
+    assert board.frames(proto.MotorEfforts)[-1].message.efforts == (0.0, 0.0, 0.0, 0.0)
