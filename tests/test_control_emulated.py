@@ -11,6 +11,7 @@ frames -> emulated motors -> encoder counts -> serial frames -> joint_states/odo
 
 import math
 import os
+import re
 import signal
 import threading
 import time
@@ -69,7 +70,8 @@ def start_emulated(start_system, test_node, tmp_path):
         port = tmp_path / 'ttyESP32'
         system = start_system(
             'mecanum_control', 'emulated_control.launch.yaml', f'port:={port}',
-            'use_sim_time:=true', f'emulator_args:=--tick-offset {TICK_OFFSET} {emulator_args}')
+            'use_sim_time:=true', f'emulator_args:=--tick-offset {TICK_OFFSET} {emulator_args}',
+            f'estop_latch_file:={tmp_path / "estop_latched"}')
         system.wait_for_line(r'\[hardware_interface\].*Connected to the board')
         system.wait_for_line(r'\[motor_controller\].*Motor controller started')
         system.wait_for_line(r'\[velocity_controller\].*control active')
@@ -217,6 +219,14 @@ def test_emergency_stop_holds_the_wheels_until_released_and_commanded_again(emul
     time.sleep(2.0)
     assert all(wheels_still(m) for m in joints.since(held_since + 0.2))
 
+    # The stop survives a crash and respawn of motor_controller.
+    os.kill(system.node_pid('motor_controller'), signal.SIGKILL)
+    system.wait_for_line(r'\[motor_controller\].*EMERGENCY STOP still engaged from before',
+                         timeout=15.0)
+    restarted_at = time.monotonic()
+    time.sleep(1.5)
+    assert all(wheels_still(m) for m in joints.since(restarted_at))
+
     assert release.wait_for_service(timeout_sec=5.0)
     future = release.call_async(Trigger.Request())
     deadline = time.monotonic() + 5
@@ -272,6 +282,9 @@ def test_the_board_stops_the_motors_by_itself_when_the_host_hangs(emulated):
     driver = Driver(test_node)
     driver.drive(vx=0.3)
     joints.wait_for(lambda m: min(m.velocity) > 5.0, timeout=10.0)
+    resumed = r'\[board_emulator\].*effort commands resumed'
+    assert system.output().count('effort commands resumed') == 1  # when the host connected
+    assert 'motors stopped' not in system.output()
     host = system.node_pid('hardware_interface')
     os.kill(host, signal.SIGSTOP)  # the host hangs: no more effort frames
     try:
@@ -279,5 +292,8 @@ def test_the_board_stops_the_motors_by_itself_when_the_host_hangs(emulated):
                              'stopped', timeout=3.0)
     finally:
         os.kill(host, signal.SIGCONT)
-    system.wait_for_line(r'\[board_emulator\].*effort commands resumed', timeout=5.0)
+    deadline = time.monotonic() + 5.0
+    while len(re.findall(resumed, system.output())) < 2:
+        assert time.monotonic() < deadline, system.output()
+        time.sleep(0.05)
     joints.wait_for_new(lambda m: min(m.velocity) > 5.0, timeout=5.0)

@@ -47,6 +47,12 @@ class PtyPort:
 
     def plug(self) -> None:
         """Create a new raw pty and point the link at it (atomically)."""
+        if self.link.exists() or self.link.is_symlink():
+            target = os.readlink(self.link) if self.link.is_symlink() else None
+            if target is None or not target.startswith('/dev/pts/'):
+                raise FileExistsError(
+                    f'{self.link} exists and is not a pseudo-terminal link: refusing to '
+                    'replace it (is it a real device?)')
         master, slave = os.openpty()
         tty.setraw(slave)
         os.set_blocking(master, False)
@@ -57,6 +63,10 @@ class PtyPort:
             tmp.unlink()
         os.symlink(self.device, tmp)
         os.replace(tmp, self.link)
+        try:
+            os.write(master, b'\x00')  # leading delimiter after boot (protocol doc, 1)
+        except OSError:
+            pass
 
     def unplug(self) -> None:
         """Remove the link and close the pty, as pulling the USB cable would."""
@@ -92,7 +102,7 @@ class BoardEmulator:
         self.rx_bad_frames_reported = 0
         self.pending_signals: List[int] = []
         self.running = True
-        self._in_timeout = False
+        self._in_timeout = True  # motors are off from boot until the first command
 
     def say(self, text: str) -> None:
         """Log a line on stdout (the launch runner prefixes it with the node's name)."""
@@ -259,7 +269,11 @@ def main(argv: Optional[List[str]] = None) -> int:
                              args.status_rate_hz, args.drop_rate, args.corrupt_rate, args.seed)
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):
         signal.signal(signum, emulator.on_signal)
-    emulator.run()
+    try:
+        emulator.run()
+    except FileExistsError as error:
+        print(f'board_emulator: {error}', file=sys.stderr)
+        return 2
     return 0
 
 

@@ -110,8 +110,8 @@ class BoardModel:
         self.time_us += int(round(dt_s * 1e6))
         if (self.last_command_us is None
                 or self.time_us - self.last_command_us > self.command_timeout_ms * 1000):
-            if self.last_command_us is not None:
-                self.faults |= FaultFlags.COMMAND_TIMEOUT
+            # Also from boot until the first command (doc/esp32_protocol.md, 4.1).
+            self.faults |= FaultFlags.COMMAND_TIMEOUT
             self.efforts = [0.0] * 4
         for wheel, effort in zip(self.wheels, self.efforts):
             wheel.step(self.motor, effort, dt_s)

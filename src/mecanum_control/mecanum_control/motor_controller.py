@@ -7,7 +7,8 @@ Subscribes ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
 (std_msgs/Float32MultiArray, wheel angular velocities rad/s, FL FR RL RR) at
 ``publish_rate_hz`` and at once on every accepted command, and ``/diagnostics``.
 Service ``~/release_emergency_stop`` (std_srvs/Trigger) releases the stop; the robot
-then waits for a new command.
+then waits for a new command. With ``estop_latch_file`` set, an engaged stop is also
+recorded in that file, so a restarted node (respawn, crash) starts engaged.
 
 Limits come from motor_params.yaml (per-axis velocity and acceleration, wheel speed
 with direction-keeping desaturation). NaN/inf or absurd commands (beyond
@@ -16,7 +17,9 @@ without a command for ``cmd_timeout_s`` the wheels ramp to zero. The logic lives
 :mod:`mecanum_control.command_limits`.
 """
 
+from pathlib import Path
 import sys
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
@@ -53,6 +56,8 @@ class MotorController(Node):
         absurd_factor = positive('absurd_factor',
                                  self.declare_parameter('absurd_factor', 10.0).value)
         stamped = bool(self.declare_parameter('use_stamped_cmd_vel', False).value)
+        latch = str(self.declare_parameter('estop_latch_file', '').value)
+        self.estop_latch_file = Path(latch) if latch else None
         limits = TwistLimits(
             x=AxisLimits(config.max_velocity_x_m_s, config.max_acceleration_x_m_s2),
             y=AxisLimits(config.max_velocity_y_m_s, config.max_acceleration_y_m_s2),
@@ -62,6 +67,13 @@ class MotorController(Node):
         self.core = MotorCommandCore(config.geometry, limits, config.max_wheel_speed_rad_s,
                                      cmd_timeout_s)
         self._reported_status = None
+        self.release_service_name = self.resolve_service_name('~/release_emergency_stop')
+        if self.estop_latch_file is not None and self.estop_latch_file.exists():
+            self.core.engage_estop(f'latched before a restart ({self.estop_latch_file})')
+            self.get_logger().error(
+                'EMERGENCY STOP still engaged from before this node restarted '
+                f'({self.estop_latch_file}): wheels held at zero until '
+                f'{self.release_service_name} is called')
 
         self.speeds_pub = self.create_publisher(Float32MultiArray, 'motor_speeds', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -97,8 +109,9 @@ class MotorController(Node):
         """Engage the latching emergency stop on true; false does not release it."""
         if msg.data and self.core.status != 'estop':
             self.core.engage_estop('emergency_stop topic')
+            self._write_latch()
             self.get_logger().error('EMERGENCY STOP engaged: wheels held at zero until '
-                                    f'{self.release_srv.srv_name} is called')
+                                    f'{self.release_service_name} is called')
             self.publish_speeds()
             self.publish_diagnostics()
 
@@ -106,12 +119,25 @@ class MotorController(Node):
         """Release the emergency stop; motion resumes only with a new command."""
         was_engaged = self.core.status == 'estop'
         self.core.release_estop()
+        if self.estop_latch_file is not None:
+            self.estop_latch_file.unlink(missing_ok=True)
         response.success = True
         response.message = ('emergency stop released; waiting for a new cmd_vel'
                             if was_engaged else 'emergency stop was not engaged')
         self.get_logger().warning(response.message)
         self.publish_diagnostics()
         return response
+
+    def _write_latch(self) -> None:
+        """Record the engaged stop so that a restarted node starts engaged too."""
+        if self.estop_latch_file is None:
+            return
+        try:
+            self.estop_latch_file.write_text(f'engaged at {time.time():.3f}\n')
+        except OSError as error:
+            self.get_logger().error(f'Cannot record the emergency stop in '
+                                    f'{self.estop_latch_file}: {error}; a restart would '
+                                    'forget it')
 
     def publish_speeds(self) -> None:
         """Publish the wheel speed targets for now."""

@@ -1,8 +1,9 @@
 """Hand-worked tests of mecanum_control.board_model (wheel physics, firmware timeout, IMU)."""
 
 import math
+import os
 
-from mecanum_control.board_emulator import parse_args
+from mecanum_control.board_emulator import parse_args, PtyPort
 from mecanum_control.board_model import (
     BoardModel, MotorModel, STANDARD_GRAVITY_M_S2, to_int32, Wheel)
 from mecanum_control.esp32_protocol import FaultFlags
@@ -204,12 +205,12 @@ def test_command_keeps_other_faults():
     assert board.faults == FaultFlags(0)
 
 
-def test_never_commanded_board_does_not_move_or_time_out():
-    """Without any command the wheels stay still and COMMAND_TIMEOUT is not raised."""
+def test_never_commanded_board_does_not_move_and_reports_the_timeout():
+    """Without any command the wheels stay still and COMMAND_TIMEOUT is set, as after boot."""
     board = make_board()
     board.efforts = [1.0, 1.0, 1.0, 1.0]  # even stale duties are not applied
     run(board, 1.0)
-    assert board.faults == FaultFlags(0)
+    assert board.faults == FaultFlags.COMMAND_TIMEOUT
     assert board.ticks == (0, 0, 0, 0)
     for wheel in board.wheels:
         assert wheel.speed_rad_s == 0.0
@@ -416,3 +417,26 @@ def test_emulator_arguments_from_ros2_launch_are_split_like_a_shell():
     args = parse_args(['--link', '/tmp/x', '', '--tick-offset 5 --block-wheel FL',
                        '--ros-args', '-r', '__node:=board_emulator'])
     assert (args.tick_offset, args.block_wheel, str(args.link)) == (5, ['FL'], '/tmp/x')
+
+
+def test_emulator_refuses_to_replace_a_real_file_or_device_link(tmp_path):
+    """--link pointing at an existing file or a non-pty symlink is refused, not replaced."""
+    real = tmp_path / 'esp32'
+    real.write_text('precious')
+    with pytest.raises(FileExistsError, match='refusing to replace'):
+        PtyPort(real).plug()
+    assert real.read_text() == 'precious'
+    udev_link = tmp_path / 'udev'
+    udev_link.symlink_to('/dev/ttyUSB0')
+    with pytest.raises(FileExistsError):
+        PtyPort(udev_link).plug()
+    assert os.readlink(udev_link) == '/dev/ttyUSB0'
+    stale = tmp_path / 'stale'
+    stale.symlink_to('/dev/pts/999')  # an emulator's leftover link is replaced
+    port = PtyPort(stale)
+    port.plug()
+    try:
+        assert os.readlink(stale).startswith('/dev/pts/')
+    finally:
+        port.unplug()
+    assert not stale.exists() and not stale.is_symlink()
