@@ -14,6 +14,11 @@ Output of ``PidController.update``::
 
 clipped to +-max_effort. A zero target is a commanded stop: the output is exactly 0.0
 and the integrator is reset, so motors do not hum at rest.
+
+The controller never holds a non-finite state and never outputs NaN: a measurement jump
+too large for a finite rate is not differentiated, an integrator step that would not be
+finite is skipped, and an output that is NaN anyway (e.g. inf - inf from absurd inputs)
+becomes 0.0, never full duty.
 """
 
 from dataclasses import dataclass
@@ -61,8 +66,20 @@ class PidGains:
 
 
 def _clamp(value: float, limit: float) -> float:
-    """Clip value to [-limit, limit]."""
+    """
+    Clip value to [-limit, limit]; NaN gives 0.0.
+
+    A NaN effort means the computation went wrong: it must stop the motor, not become
+    full duty (max/min with a NaN return whichever operand comes first).
+    """
+    if math.isnan(value):
+        return 0.0
     return max(-limit, min(limit, value))
+
+
+def _scaled(gain: float, value: float) -> float:
+    """Return gain * value, with a zero gain giving 0.0 even for an infinite value."""
+    return 0.0 if gain == 0.0 else gain * value
 
 
 def _valid_dt(dt_s: float) -> bool:
@@ -77,6 +94,11 @@ class PidController:
     Anti-windup is conditional integration (clamping): the integrator is not advanced
     on a step where the output would be saturated in the direction of the error, and
     the integral contribution itself is kept within +-max_effort.
+
+    The derivative contribution is capped at +-2 x max_effort (the whole output span)
+    before filtering: with feedforward + P + I inside the output range a larger D term
+    could not change the clipped output, but a measurement glitch would otherwise leave
+    a huge filter state that holds the output saturated for many steps.
     """
 
     def __init__(self, gains: PidGains) -> None:
@@ -116,7 +138,8 @@ class PidController:
         dt_s is <= 0 or not finite, nothing is integrated or differentiated on this
         step: the output is feedforward + P + the held integral term (no D term). target == 0.0
         resets the controller and returns exactly 0.0 (a commanded stop; the board
-        brakes).
+        brakes). Finite but absurd inputs (e.g. a measurement jump of 1e308 rad/s) never
+        make the state non-finite; a step whose output would be NaN returns 0.0.
         """
         if not (math.isfinite(target) and math.isfinite(measured)):
             raise ValueError(
@@ -126,19 +149,24 @@ class PidController:
             self.reset()
             return 0.0
         g = self._gains
-        error = target - measured
-        base = (g.kf * target + math.copysign(g.static_effort, target) + g.kp * error)
+        error = target - measured  # may overflow to +-inf for absurd finite inputs
+        base = (_scaled(g.kf, target) + math.copysign(g.static_effort, target)
+                + _scaled(g.kp, error))
 
         if _valid_dt(dt_s):
             if self._prev_measured is not None:
-                raw = -g.kd * (measured - self._prev_measured) / dt_s
-                alpha = dt_s / (g.derivative_filter_tau_s + dt_s)
-                self._derivative += alpha * (raw - self._derivative)
-            candidate = _clamp(self._integral + g.ki * error * dt_s, g.max_effort)
-            unclipped = base + candidate + self._derivative
-            # Clamping: refuse to integrate further into a saturation the error drives.
-            if not (abs(unclipped) > g.max_effort and error * unclipped > 0.0):
-                self._integral = candidate
+                rate = (measured - self._prev_measured) / dt_s
+                if math.isfinite(rate):   # else: no usable rate, hold the D state
+                    raw = _clamp(-_scaled(g.kd, rate), 2.0 * g.max_effort)
+                    alpha = dt_s / (g.derivative_filter_tau_s + dt_s)
+                    self._derivative += alpha * (raw - self._derivative)
+            increment = _scaled(g.ki, error) * dt_s
+            if math.isfinite(increment):
+                candidate = _clamp(self._integral + increment, g.max_effort)
+                unclipped = base + candidate + self._derivative
+                # Clamping: refuse to integrate further into a saturation the error drives.
+                if not (abs(unclipped) > g.max_effort and error * unclipped > 0.0):
+                    self._integral = candidate
             derivative = self._derivative
         else:
             derivative = 0.0  # no rate estimate without a time step
@@ -150,10 +178,13 @@ class PidController:
 @dataclass(frozen=True)
 class StallConfig:
     """
-    When a wheel counts as stalled.
+    When a wheel counts as not following its effort (stalled or running against it).
 
-    |effort| >= effort_threshold (duty) while |measured| < velocity_threshold_rad_s,
-    continuously for time_s seconds.
+    |effort| >= effort_threshold (duty) while the wheel does not turn in the effort's
+    direction at velocity_threshold_rad_s or more, continuously for time_s seconds:
+    either |measured| < velocity_threshold_rad_s (stalled, encoder disconnected) or
+    the measured speed is opposite to the effort with |measured| >=
+    velocity_threshold_rad_s (wrong direction: encoder or motor wired reversed).
     """
 
     effort_threshold: float = 0.6
@@ -168,14 +199,31 @@ class StallConfig:
                 raise ValueError(f'StallConfig.{name} must be a finite number > 0, got {value!r}')
 
 
+FAULT_STALLED = 'stalled'
+FAULT_WRONG_DIRECTION = 'wrong direction'
+
+
 class StallDetector:
     """
-    Latching stall detector of one wheel.
+    Latching detector of a wheel that does not follow its effort.
 
-    The stall condition must hold continuously for config.time_s (summing the real
-    dt of each step; any step without it restarts the count). Once stalled, the
-    latch holds whatever the wheel does until the target becomes exactly 0.0 (an
-    operator stop); then the wheel may be retried and the count starts afresh.
+    The fault condition (see :class:`StallConfig`) must hold continuously for
+    config.time_s (summing the real dt of each step; any step without it restarts the
+    count). It covers two faults, timed together because a reversed encoder passes
+    through the first on its way into the second:
+
+    * ``'stalled'``: high effort, wheel (nearly) still: a blocked wheel or a
+      disconnected encoder.
+    * ``'wrong direction'``: high effort, wheel turning against it: an encoder (or
+      motor) wired reversed. The loop then has positive feedback and would run the
+      wheel at full speed forever; nothing else stops it.
+
+    The reported :attr:`fault` is the one that held for most of the counted time.
+    Normal braking (a target reversal, deceleration) also drives against the motion
+    at high effort, but only for the tens of ms the wheel takes to reach zero, and a
+    brief external push is equally shorter than time_s. Once latched, the latch holds
+    whatever the wheel does until the target becomes exactly 0.0 (an operator stop);
+    then the wheel may be retried and the count starts afresh.
     """
 
     # Tolerance on the accumulated time, so 25 steps of 0.02 s count as 0.5 s.
@@ -185,7 +233,8 @@ class StallDetector:
         """Create a detector, not stalled."""
         self._config = config
         self._condition_s = 0.0
-        self._stalled = False
+        self._wrong_direction_s = 0.0
+        self._fault: Optional[str] = None
 
     @property
     def config(self) -> StallConfig:
@@ -194,22 +243,28 @@ class StallDetector:
 
     @property
     def stalled(self) -> bool:
-        """Return True while the stall latch is set."""
-        return self._stalled
+        """Return True while the latch is set (for either fault: the wheel is stopped)."""
+        return self._fault is not None
+
+    @property
+    def fault(self) -> Optional[str]:
+        """Return None, or while latched FAULT_STALLED or FAULT_WRONG_DIRECTION."""
+        return self._fault
 
     @property
     def condition_time_s(self) -> float:
-        """Return how long (s) the stall condition has held, frozen once latched."""
+        """Return how long (s) the fault condition has held, frozen once latched."""
         return self._condition_s
 
     def reset(self) -> None:
         """Clear the latch and the timer."""
         self._condition_s = 0.0
-        self._stalled = False
+        self._wrong_direction_s = 0.0
+        self._fault = None
 
     def update(self, effort: float, measured: float, target: float, dt_s: float) -> bool:
         """
-        Advance one step and return True while latched stalled.
+        Advance one step and return True while latched (stalled or wrong direction).
 
         effort is the commanded duty, measured and target wheel speeds in rad/s,
         dt_s the real step (s); a step with dt_s <= 0 or non-finite adds no time.
@@ -222,14 +277,20 @@ class StallDetector:
         if target == 0.0:
             self.reset()
             return False
-        if self._stalled:
+        if self._fault is not None:
             return True
         cfg = self._config
-        if abs(effort) >= cfg.effort_threshold and abs(measured) < cfg.velocity_threshold_rad_s:
+        # Speed in the direction the effort pushes (effort != 0 past the threshold).
+        following = math.copysign(1.0, effort) * measured
+        if abs(effort) >= cfg.effort_threshold and following < cfg.velocity_threshold_rad_s:
             if _valid_dt(dt_s):
                 self._condition_s += dt_s
+                if following <= -cfg.velocity_threshold_rad_s:
+                    self._wrong_direction_s += dt_s
             if self._condition_s >= cfg.time_s - self._TIME_EPS_S:
-                self._stalled = True
+                wrong = self._wrong_direction_s > 0.5 * self._condition_s
+                self._fault = FAULT_WRONG_DIRECTION if wrong else FAULT_STALLED
         else:
             self._condition_s = 0.0
-        return self._stalled
+            self._wrong_direction_s = 0.0
+        return self._fault is not None

@@ -9,10 +9,14 @@ of the joints named in ``wheel_joint_names``). Publishes ``motor_efforts``
 
 Each wheel runs :class:`mecanum_control.pid.PidController` with the real time step
 (feedforward, anti-windup, output limit, derivative on measurement). A wheel whose
-effort stays high without motion (stalled, or its encoder disconnected) is stopped
-by :class:`mecanum_control.pid.StallDetector` and reported until its target returns
-to zero. Stale targets (``target_timeout_s``) mean zero; stale measurements
-(``measurement_timeout_s``) stop every wheel. Gains: ``config/pid_gains.yaml``.
+effort stays high without motion (stalled, or its encoder disconnected) or while it
+turns against the effort (encoder wired reversed: positive feedback) is stopped by
+:class:`mecanum_control.pid.StallDetector` and reported until its target returns to
+zero. Stale targets (``target_timeout_s``) mean zero; stale measurements
+(``measurement_timeout_s``) stop every wheel. Measured wheel speeds beyond
+``PLAUSIBLE_SPEED_FACTOR`` x ``max_wheel_speed_rad_s`` are rejected as garbage (the
+message is ignored, so persistent garbage trips the measurement timeout), and a
+non-finite PID output is sent as 0. Gains: ``config/pid_gains.yaml``.
 """
 
 import math
@@ -23,13 +27,18 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mecanum_control.motor_controller import wheel_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
-from mecanum_control.pid import PidController, PidGains, StallConfig, StallDetector
+from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains, StallConfig,
+                                 StallDetector)
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
 WHEELS = ('FL', 'FR', 'RL', 'RR')
+
+# A measured wheel speed beyond this many times max_wheel_speed_rad_s is not physical
+# (the no-load speed is only about 1.2 x that): a decoding or transport glitch.
+PLAUSIBLE_SPEED_FACTOR = 4.0
 
 
 class VelocityController(Node):
@@ -93,22 +102,36 @@ class VelocityController(Node):
         self.target_time = self.get_clock().now()
 
     def on_joint_states(self, msg: JointState) -> None:
-        """Take measured wheel speeds of our joints (other joints are ignored)."""
+        """
+        Take measured wheel speeds of our joints (other joints are ignored).
+
+        A message with a non-finite wheel speed, or one beyond PLAUSIBLE_SPEED_FACTOR x
+        max_wheel_speed_rad_s, is ignored with a throttled warning (the previous
+        measurement and its age stay, so garbage that persists trips the timeout).
+        """
         if len(msg.velocity) != len(msg.name):
             return
         speeds = dict(zip(msg.name, msg.velocity))
         if not all(name in speeds for name in self.joint_names):
             return
-        values = [speeds[name] for name in self.joint_names]
+        values = [float(speeds[name]) for name in self.joint_names]
         if not all(math.isfinite(v) for v in values):
             self.get_logger().warning('Non-finite wheel speed in joint_states ignored',
                                       throttle_duration_sec=1.0)
+            return
+        bound = PLAUSIBLE_SPEED_FACTOR * self.max_wheel_speed_rad_s
+        if any(abs(v) > bound for v in values):
+            self.get_logger().warning(
+                f'Implausible wheel speeds {values} rad/s in joint_states ignored (limit '
+                f'+-{bound:g} rad/s = {PLAUSIBLE_SPEED_FACTOR:g} x max_wheel_speed_rad_s)',
+                throttle_duration_sec=1.0)
             return
         self.measured = values
         self.measured_time = self.get_clock().now()
 
     def _age_s(self, stamp: Optional[Time], now: Time) -> float:
-        return math.inf if stamp is None else (now - stamp).nanoseconds * 1e-9
+        # abs(): a clock stepping back must not make old data look fresh forever.
+        return math.inf if stamp is None else abs((now - stamp).nanoseconds) * 1e-9
 
     def on_control(self) -> None:
         """One control period: PID per wheel with the measured dt, then publish."""
@@ -135,14 +158,22 @@ class VelocityController(Node):
         efforts = []
         for i, (pid, stall) in enumerate(zip(self.pids, self.stall_detectors)):
             effort = pid.update(targets[i], self.measured[i], dt_s)
+            if not math.isfinite(effort):  # never expected; a NaN must not become duty
+                pid.reset()
+                effort = 0.0
             if stall.update(effort, self.measured[i], targets[i], dt_s):
                 pid.reset()
                 effort = 0.0
                 if WHEELS[i] not in self._reported:
                     self._reported.add(WHEELS[i])
+                    if stall.fault == FAULT_WRONG_DIRECTION:
+                        problem = (f'Wheel {WHEELS[i]} runs against its effort (encoder '
+                                   'reversed?): high effort, wheel turning the other way')
+                    else:
+                        problem = (f'Wheel {WHEELS[i]} stalled or its encoder is '
+                                   'disconnected: high effort without motion')
                     self.get_logger().error(
-                        f'Wheel {WHEELS[i]} stalled or its encoder is disconnected: high '
-                        'effort without motion; wheel stopped until its target returns to 0')
+                        f'{problem}; wheel stopped until its target returns to 0')
                     self.publish_diagnostics()
             elif WHEELS[i] in self._reported:
                 self._reported.discard(WHEELS[i])
@@ -160,14 +191,22 @@ class VelocityController(Node):
             self.publish_diagnostics()
 
     def publish_diagnostics(self) -> None:
-        """Report control state and stalled wheels on /diagnostics."""
-        stalled = [WHEELS[i] for i, s in enumerate(self.stall_detectors) if s.stalled]
+        """Report control state and stopped (stalled / reversed) wheels on /diagnostics."""
+        faults = [(w, s.fault) for w, s in zip(WHEELS, self.stall_detectors) if s.stalled]
+        stalled = [w for w, fault in faults if fault != FAULT_WRONG_DIRECTION]
+        reversed_ = [w for w, fault in faults if fault == FAULT_WRONG_DIRECTION]
         status = DiagnosticStatus(name='mecanum_control: velocity_controller')
         if self.state != 'ok':
             status.level, status.message = DiagnosticStatus.ERROR, self.state
-        elif stalled:
+        elif faults:
             status.level = DiagnosticStatus.ERROR
-            status.message = f'stalled or encoder disconnected: {", ".join(stalled)}'
+            parts = []
+            if stalled:
+                parts.append(f'stalled or encoder disconnected: {", ".join(stalled)}')
+            if reversed_:
+                parts.append('runs against its effort (encoder reversed?): '
+                             f'{", ".join(reversed_)}')
+            status.message = '; '.join(parts)
         else:
             status.level, status.message = DiagnosticStatus.OK, 'ok'
         status.values = [KeyValue(key=f'effort_{w}', value=f'{e:.3f}')

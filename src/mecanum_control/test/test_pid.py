@@ -4,6 +4,7 @@ import math
 import random
 
 from hypothesis import given, strategies as st
+from mecanum_control.pid import _clamp, FAULT_STALLED, FAULT_WRONG_DIRECTION
 from mecanum_control.pid import PidController, PidGains, StallConfig, StallDetector
 import pytest
 
@@ -365,3 +366,272 @@ def test_stall_detected_in_closed_loop_with_blocked_wheel():
             stalled_at = step
     # Effort 0.45 + 0.5 + integral >= 0.95 >= 0.6 from the first step: 25 steps.
     assert stalled_at == 25
+
+
+def test_stall_reports_fault_stalled():
+    """A still wheel under high effort latches with fault 'stalled'; no fault before."""
+    detector = StallDetector(CONFIG)
+    for _ in range(4):
+        detector.update(0.9, 0.2, 3.0, 0.1)
+        assert detector.fault is None
+    assert detector.update(0.9, -0.2, 3.0, 0.1)
+    assert detector.fault == FAULT_STALLED == 'stalled'
+
+
+# --- wrong direction (reversed encoder or motor) ----------------------------------
+
+@pytest.mark.parametrize('effort, measured, target', [(0.9, -0.5, 3.0), (-0.6, 12.0, -3.0),
+                                                      (1.0, -30.0, 0.5)])
+def test_wheel_against_its_effort_latches_wrong_direction(effort, measured, target):
+    """|effort| >= 0.6 with the wheel at >= 0.5 rad/s the other way for 0.5 s latches."""
+    detector = StallDetector(CONFIG)
+    results = [detector.update(effort, measured, target, 0.1) for _ in range(5)]
+    assert results == [False] * 4 + [True]
+    assert detector.stalled
+    assert detector.fault == FAULT_WRONG_DIRECTION == 'wrong direction'
+    assert detector.update(0.0, 0.0, target, 0.1)                # latched
+    assert not detector.update(0.0, measured, 0.0, 0.1)          # operator stop clears
+    assert detector.fault is None
+
+
+def test_wrong_direction_needs_high_effort_and_the_time():
+    """Gentle braking (|effort| < 0.6) against the motion, or a short episode, never latches."""
+    gentle = StallDetector(CONFIG)
+    interrupted = StallDetector(CONFIG)
+    for step in range(100):
+        assert not gentle.update(-0.59, 20.0, 3.0, 0.02)
+        # 24 steps (0.48 s) against the effort, then one step following it.
+        assert not interrupted.update(0.9, 2.0 if step % 25 == 24 else -5.0, 3.0, 0.02)
+
+
+def test_still_then_reversed_counts_as_one_condition():
+    """A wheel that is first still, then runs backwards, latches after time_s in total."""
+    detector = StallDetector(CONFIG)
+    speeds = [0.0, -0.3, -4.0, -9.0, -12.0]
+    assert [detector.update(0.95, w, 3.0, 0.1) for w in speeds] == [False] * 4 + [True]
+    assert detector.fault == FAULT_WRONG_DIRECTION   # 0.3 s of 0.5 s against the effort
+
+
+def test_fault_is_the_one_that_held_longest():
+    """3 of 5 steps still -> 'stalled'; the order does not matter."""
+    detector = StallDetector(CONFIG)
+    speeds = [-2.0, 0.0, 0.1, -2.0, 0.0]
+    assert [detector.update(0.95, w, 3.0, 0.1) for w in speeds] == [False] * 4 + [True]
+    assert detector.fault == FAULT_STALLED
+
+
+# Wheel of board_model.MotorModel as configured in motor_params.yaml, with the node's gains.
+MOTOR_NO_LOAD_RAD_S = 34.5
+MOTOR_TAU_S = 0.08
+MOTOR_DEAD_BAND = 0.03
+MAX_WHEEL_SPEED_RAD_S = 28.0
+NODE_GAINS = PidGains(kp=0.03, ki=0.3, kd=0.0, kf=1.0 / MOTOR_NO_LOAD_RAD_S,
+                      static_effort=0.03, derivative_filter_tau_s=0.02)
+MAX_DT_S = 0.025     # longest step of jittered_dts
+
+
+def motor_step(omega: float, effort: float, dt_s: float) -> float:
+    """Advance the board-model wheel exactly over dt_s (dead band, first order)."""
+    drive = 0.0 if abs(effort) <= MOTOR_DEAD_BAND else effort
+    steady = drive * MOTOR_NO_LOAD_RAD_S
+    return steady + (omega - steady) * math.exp(-dt_s / MOTOR_TAU_S)
+
+
+def run_wheel(target_at, duration_s, seed=0, encoder_sign=1.0, motor_sign=1.0, push=None):
+    """
+    Run PID + stall detector on the board-model wheel as velocity_controller does.
+
+    The measurement is encoder_sign * omega, the wheel gets motor_sign * effort, and
+    while push(t) is not None the wheel is held at that speed (an external force).
+    A latched detector zeroes the effort. Return (detector, trace) with trace entries
+    (t after the step, true omega, effort, latched, condition_time_s).
+    """
+    pid = PidController(NODE_GAINS)
+    detector = StallDetector(StallConfig())
+    dts = jittered_dts(seed)
+    t, omega, trace = 0.0, 0.0, []
+    while t < duration_s:
+        dt = next(dts)
+        target, measured = target_at(t), encoder_sign * omega
+        effort = pid.update(target, measured, dt)
+        latched = detector.update(effort, measured, target, dt)
+        if latched:
+            pid.reset()
+            effort = 0.0
+        omega = motor_step(omega, motor_sign * effort, dt)
+        t += dt
+        held = None if push is None else push(t)
+        if held is not None:
+            omega = held
+        trace.append((t, omega, effort, latched, detector.condition_time_s))
+    return detector, trace
+
+
+@pytest.mark.parametrize('seed', range(3))
+@pytest.mark.parametrize('target', [10.0, -10.0, 2.0])
+@pytest.mark.parametrize('encoder_sign, motor_sign', [(-1.0, 1.0), (1.0, -1.0)])
+def test_reversed_encoder_or_motor_latches_wrong_direction(seed, target, encoder_sign,
+                                                           motor_sign):
+    """
+    Positive feedback (A/B swapped, or motor leads swapped) is stopped after time_s.
+
+    The PID goes to full duty while the wheel races away the wrong way; the detector
+    latches within time_s + one step of the effort first reaching the threshold (the
+    first step for 10 rad/s; a few steps later for 2 rad/s) and names the fault.
+    """
+    detector, trace = run_wheel(lambda t: target, 2.0, seed, encoder_sign, motor_sign)
+    first = next(i for i, (_, _, u, _, _) in enumerate(trace) if abs(u) >= 0.6)
+    start = 0.0 if first == 0 else trace[first - 1][0]
+    assert target != 10.0 or start == 0.0
+    latched_at = next(t for t, _, _, latched, _ in trace if latched) - start
+    assert CONFIG.time_s - 1e-9 <= latched_at <= CONFIG.time_s + MAX_DT_S
+    assert detector.fault == FAULT_WRONG_DIRECTION
+    before = [(w, u) for t, w, u, latched, _ in trace if not latched]
+    # It really was a runaway: full duty, the wheel far beyond the target speed.
+    assert abs(before[-1][1]) == pytest.approx(1.0)
+    assert abs(before[-1][0]) > 0.8 * MOTOR_NO_LOAD_RAD_S
+    # From then on no effort (the wheel coasts to a stop), until the target is 0.
+    assert all(u == 0.0 for _, _, u, latched, _ in trace if latched)
+
+
+def demanding_profile(t: float) -> float:
+    """Full-speed reversals, hard decelerations and small targets (rad/s)."""
+    for end_s, target in ((1.0, 20.0), (2.0, -20.0), (3.0, MAX_WHEEL_SPEED_RAD_S),
+                          (3.5, 2.0), (4.5, -MAX_WHEEL_SPEED_RAD_S), (5.5, MAX_WHEEL_SPEED_RAD_S),
+                          (6.0, -1.0), (6.5, 0.6)):
+        if t < end_s:
+            return target
+    return 10.0
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_normal_operation_with_reversals_never_trips(seed):
+    """
+    Correct wiring: +20 -> -20, +-28 rad/s reversals and decelerations do not latch.
+
+    Braking against the motion at full duty does meet the condition, but only until
+    the wheel crosses zero, far shorter than time_s.
+    """
+    detector, trace = run_wheel(demanding_profile, 8.0, seed)
+    assert not any(latched for _, _, _, latched, _ in trace)
+    assert detector.fault is None
+    worst = max(c for *_, c in trace)
+    assert 0.0 < worst < 0.3 * CONFIG.time_s
+    # And the wheel did follow: -20 reached before the next change, 10 at the end.
+    assert [w for t, w, *_ in trace if t < 2.0][-1] == pytest.approx(-20.0, rel=0.02)
+    assert trace[-1][1] == pytest.approx(10.0, rel=0.02)
+
+
+def test_normal_reversal_never_trips_on_the_slow_test_plant():
+    """The slower test plant (20 rad/s, 0.1 s) with TUNED gains: +20 -> -20 is fine too."""
+    detector = StallDetector(StallConfig())
+    pid = PidController(TUNED)
+    omega, t, worst = 0.0, 0.0, 0.0
+    dts = jittered_dts(7)
+    while t < 4.0:
+        dt = next(dts)
+        target = 20.0 if t < 2.0 else -20.0
+        effort = pid.update(target, omega, dt)
+        assert not detector.update(effort, omega, target, dt)
+        worst = max(worst, detector.condition_time_s)
+        omega = plant_step(omega, effort, dt)
+        t += dt
+    assert 0.0 < worst < 0.5 * CONFIG.time_s
+
+
+PUSH_SPEED_RAD_S = -8.0
+
+
+@pytest.mark.parametrize('seed', range(3))
+@pytest.mark.parametrize('push_s, trips', [(0.3, False), (0.7, True)])
+def test_external_push_trips_only_if_longer_than_time_s(seed, push_s, trips):
+    """
+    Wheel held at -8 rad/s against a +10 rad/s target: 0.3 s is tolerated, 0.7 s is not.
+
+    The PID saturates forward during the push, so the condition holds all along.
+    """
+    def push(t):
+        return PUSH_SPEED_RAD_S if 1.0 <= t < 1.0 + push_s else None
+
+    detector, trace = run_wheel(lambda t: 10.0, 3.0, seed, push=push)
+    assert any(latched for *_, latched, _ in trace) == trips
+    if trips:
+        assert detector.fault == FAULT_WRONG_DIRECTION
+    else:
+        assert max(c for *_, c in trace) >= push_s - MAX_DT_S
+        assert trace[-1][1] == pytest.approx(10.0, rel=0.02)
+
+
+# --- absurd but finite measurements (NaN must never become full duty) -------------
+
+def test_clamp_maps_nan_to_zero():
+    """_clamp: NaN -> 0.0, +-inf -> +-limit, in-range values unchanged."""
+    assert _clamp(float('nan'), 0.8) == 0.0
+    assert _clamp(float('inf'), 0.8) == 0.8
+    assert _clamp(-float('inf'), 0.8) == -0.8
+    assert _clamp(0.3, 0.8) == 0.3
+
+
+def test_nan_output_becomes_zero_not_full_duty():
+    """An inf - inf output (kf * target = inf, kp * error = -inf) is NaN: effort 0.0."""
+    pid = PidController(PidGains(kp=10.0, ki=0.0, kd=0.0, kf=10.0))
+    assert pid.update(1e308, 1.7e308, 0.02) == 0.0
+
+
+GLITCH_GAINS = [TUNED, PidGains(kp=0.05, ki=0.5, kd=0.01, kf=0.045, static_effort=0.02,
+                                derivative_filter_tau_s=0.02)]
+HUGE = 1.7e308
+
+
+@pytest.mark.parametrize('gains', GLITCH_GAINS)
+def test_huge_measurement_jumps_keep_the_state_finite(gains):
+    """
+    Measured 1.7e308 -> -1.7e308 overflows the rate to inf; 0 * inf must not poison.
+
+    Efforts stay finite within the limit, the state finite, and once target and
+    measured agree again the effort is the plain feedforward, not +max_effort.
+    """
+    pid = PidController(gains)
+    steps = [(5.0, 5.0), (5.0, HUGE), (5.0, -HUGE), (5.0, HUGE), (5.0, -HUGE)]
+    for target, measured in steps:
+        effort = pid.update(target, measured, 0.02)
+        assert math.isfinite(effort) and abs(effort) <= gains.max_effort
+        assert math.isfinite(pid.integral_effort) and math.isfinite(pid.derivative_effort)
+    expected = gains.kf * 5.0 + gains.static_effort
+    for _ in range(3):
+        assert pid.update(5.0, 5.0, 0.02) == pytest.approx(expected)
+
+
+@pytest.mark.parametrize('gains', GLITCH_GAINS)
+def test_huge_target_equal_to_measured_never_gives_full_forward(gains):
+    """Target == measured == -1.7e308 right after +1.7e308: full reverse, never +max."""
+    pid = PidController(gains)
+    assert pid.update(HUGE, HUGE, 0.02) == gains.max_effort        # feedforward of 1.7e308
+    for _ in range(3):
+        assert pid.update(-HUGE, -HUGE, 0.02) == -gains.max_effort
+        assert pid.update(HUGE, HUGE, 0.02) == gains.max_effort
+    assert pid.update(-5.0, -5.0, 0.02) == pytest.approx(-5.0 * gains.kf - gains.static_effort)
+
+
+def test_one_glitch_does_not_hold_the_output_saturated():
+    """A single 1e300 rad/s sample with kd > 0: the D term is capped and decays in steps."""
+    gains = GLITCH_GAINS[1]
+    pid = PidController(gains)
+    pid.update(5.0, 5.0, 0.02)
+    pid.update(5.0, 1e300, 0.02)
+    assert abs(pid.derivative_effort) <= 2.0 * gains.max_effort
+    efforts = [pid.update(5.0, 5.0, 0.02) for _ in range(15)]
+    assert efforts[-1] == pytest.approx(gains.kf * 5.0 + gains.static_effort, abs=1e-3)
+
+
+FINITE = st.floats(allow_nan=False, allow_infinity=False)
+
+
+@given(st.lists(st.tuples(FINITE, FINITE, st.floats(0.0, 0.1)), min_size=1, max_size=30))
+def test_any_finite_inputs_give_finite_bounded_output(steps):
+    """Any finite target, measured and dt: output finite within limits, state finite."""
+    pid = PidController(GLITCH_GAINS[1])
+    for target, measured, dt in steps:
+        effort = pid.update(target, measured, dt)
+        assert math.isfinite(effort) and abs(effort) <= 1.0
+        assert math.isfinite(pid.integral_effort) and math.isfinite(pid.derivative_effort)
