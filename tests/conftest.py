@@ -225,6 +225,25 @@ class TestNode:
                 time.sleep(step_s)
         threading.Thread(target=run, daemon=True).start()
 
+    def call(self, client, request, timeout: float = 15.0):
+        """
+        Call a service and return its response, retrying lost requests.
+
+        A request sent before the client is matched with a (re)started server is lost
+        (DDS discovery is asynchronous), so each attempt waits 2 s, then tries again.
+        """
+        assert client.wait_for_service(timeout_sec=timeout), f'{client.srv_name} not found'
+        deadline = time.monotonic() + timeout
+        while True:
+            future = client.call_async(request)
+            attempt_end = time.monotonic() + 2.0
+            while not future.done() and time.monotonic() < attempt_end:
+                time.sleep(0.02)
+            if future.done():
+                return future.result()
+            client.remove_pending_request(future)
+            assert time.monotonic() < deadline, f'{client.srv_name} did not answer'
+
     def record(self, msg_type, topic: str) -> 'Recorder':
         """Start recording a topic."""
         return Recorder(self.node, msg_type, topic)

@@ -237,10 +237,8 @@ def test_echoes_and_other_protocol_versions_do_not_count_as_a_live_board(link_se
 def test_clear_board_faults_service_sends_the_request(link_setup):
     board, host, test_node = link_setup
     client = test_node.node.create_client(Trigger, '/hardware_interface/clear_board_faults')
-    assert client.wait_for_service(timeout_sec=10.0)
-    future = client.call_async(Trigger.Request())
-    wait_until(future.done)
-    assert future.result().success, future.result().message
+    response = test_node.call(client, Trigger.Request())
+    assert response.success, response.message
     wait_until(lambda: board.frames(proto.ClearFaults))
     assert board.frames(proto.ClearFaults)[0].message.faults == 0xFFFF
     assert host.stop() == 0
