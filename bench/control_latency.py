@@ -6,7 +6,7 @@ Starts the emulated control stack (board emulator on a pty + the four control no
 wall clock, own ROS domain) and, as a baseline, a bare relay node that republishes
 each Twist as a Float32MultiArray with no processing. From this process it then
 
-* publishes cmd_vel steps too small for the acceleration limit to delay, and times
+* after 20 uncounted warm-up steps, publishes cmd_vel steps too small for the acceleration limit to delay, and times
   the first /motor_speeds carrying the matching wheel speeds (and the same for the
   relay), so the ratio shows what motor_controller adds to one DDS hop;
 * records the arrival times of /motor_speeds, /motor_efforts (velocity_controller's
@@ -169,9 +169,14 @@ def main() -> int:
             def wheel_match(msg, v):
                 return abs(msg.data[0] - v * wheel_per_vx) < 5e-5
 
+            # Warm-up (first-message allocations, DDS matching), not counted.
+            measure_latency(cmd_pub, speeds, Twist, lambda k: 0.1 + 0.00001 * (k % 2),
+                            wheel_match, 20)
             cmd_lat, cmd_miss = measure_latency(
                 cmd_pub, speeds, Twist, lambda k: 0.1 + 0.00001 * (k % 2), wheel_match,
                 args.samples)
+            measure_latency(relay_pub, relayed, Twist, lambda k: 0.2 + 0.0005 * k,
+                            lambda m, v: abs(m.data[0] - v) < 1e-6, 20)
             relay_lat, relay_miss = measure_latency(
                 relay_pub, relayed, Twist, lambda k: 0.1 + 0.0005 * k,
                 lambda m, v: abs(m.data[0] - v) < 1e-6, args.samples)
