@@ -21,6 +21,10 @@ PARAMETER_KINDS = {
     'half_wheelbase_m': 'float',
     'half_track_m': 'float',
     'wheel_joint_names': 'names',
+    'robot_mass_kg': 'float',
+    'robot_yaw_inertia_kg_m2': 'float',
+    'footprint_radius_m': 'float',
+    'wheel_friction_coefficient': 'float',
     'encoder_counts_per_motor_rev': 'int',
     'gear_ratio': 'float',
     'motor_no_load_speed_rad_s': 'float',
@@ -46,6 +50,10 @@ class RobotConfig:
 
     geometry: MecanumGeometry
     wheel_joint_names: Tuple[str, str, str, str]
+    robot_mass_kg: float
+    robot_yaw_inertia_kg_m2: float
+    footprint_radius_m: float
+    wheel_friction_coefficient: float
     encoder_counts_per_motor_rev: int
     gear_ratio: float
     motor_no_load_speed_rad_s: float
