@@ -83,10 +83,17 @@ class PtyPort:
         return self.master is not None
 
 
-class BoardEmulator:
-    """Runs the board model in real time and talks the protocol on a PtyPort."""
+class BoardLink:
+    """
+    The firmware's serial side: decodes host frames into the model, sends reports when due.
 
-    def __init__(self, model: BoardModel, port: PtyPort, ticks_rate_hz: float = 50.0,
+    Time is whatever the caller passes (``now_s``): the wall clock in the emulator,
+    simulated time in the simulator. The model is any object with the interface of
+    :class:`mecanum_control.board_model.BoardModel` (``command``, ``clear_faults``,
+    ``ticks``, ``imu()``, ``faults``, ``time_us``, ``last_command_seq``).
+    """
+
+    def __init__(self, model, port: PtyPort, ticks_rate_hz: float = 50.0,
                  imu_rate_hz: float = 100.0, status_rate_hz: float = 10.0,
                  drop_rate: float = 0.0, corrupt_rate: float = 0.0, seed: Optional[int] = None):
         self.model = model
@@ -100,6 +107,87 @@ class BoardEmulator:
         self.decoder = proto.FrameDecoder()
         self.tx_seq: Dict[proto.MessageType, int] = dict.fromkeys(self.periods_s, 0)
         self.rx_bad_frames_reported = 0
+        self.due_s: Dict[proto.MessageType, float] = {}
+
+    def plug(self) -> None:
+        """Plug the board in: a fresh pty and decoder."""
+        self.decoder = proto.FrameDecoder()
+        self.port.plug()
+
+    def poll(self, now_s: float) -> None:
+        """Take the host's frames, then send every report that is due at now_s."""
+        if not self.port.plugged:
+            return
+        self.receive()
+        for msg_type, period_s in self.periods_s.items():
+            when = self.due_s.setdefault(msg_type, now_s)
+            if now_s >= when:
+                self.send(self.message(msg_type))
+                # Keep the rate; skip beats missed while descheduled.
+                self.due_s[msg_type] = max(when + period_s, now_s)
+
+    def next_due_s(self) -> float:
+        """Earliest time a report is due (for the caller's sleep)."""
+        return min(self.due_s.values()) if self.due_s else 0.0
+
+    def receive(self) -> None:
+        """Read and apply whatever the host sent."""
+        try:
+            data = os.read(self.port.master, 4096)
+        except BlockingIOError:
+            return
+        except OSError as error:
+            if error.errno == errno.EIO:  # no process has the device open
+                return
+            raise
+        for frame in self.decoder.feed(data):
+            message = frame.message
+            if isinstance(message, proto.MotorEfforts):
+                self.model.command(message.efforts, message.command_timeout_ms, frame.seq)
+            elif isinstance(message, proto.ClearFaults):
+                self.model.clear_faults(message.faults)
+
+    def message(self, msg_type: proto.MessageType) -> proto.Message:
+        """Build the report of one type from the model's current state."""
+        model = self.model
+        board_time_us = model.time_us % (1 << 32)
+        if msg_type == proto.MessageType.ENCODER_TICKS:
+            return proto.EncoderTicks(board_time_us, model.ticks)
+        if msg_type == proto.MessageType.IMU_SAMPLE:
+            accel, gyro = model.imu()
+            return proto.ImuSample(board_time_us, accel, gyro)
+        bad = self.decoder.stats.errors
+        faults = model.faults
+        if bad > self.rx_bad_frames_reported:
+            faults |= proto.FaultFlags.RX_ERRORS
+            self.rx_bad_frames_reported = bad
+        return proto.BoardStatus(board_time_us, faults, 12000, min(bad, 0xFFFF),
+                                 model.last_command_seq)
+
+    def send(self, message: proto.Message) -> None:
+        """Send one report, numbered per type; the line may drop or corrupt it."""
+        msg_type = proto.message_type_of(message)
+        seq = self.tx_seq[msg_type]
+        self.tx_seq[msg_type] = (seq + 1) % (1 << 16)
+        data = bytearray(proto.encode_frame(message, seq))
+        if self.drop_rate and self._random.random() < self.drop_rate:
+            return
+        if self.corrupt_rate and self._random.random() < self.corrupt_rate:
+            index = self._random.randrange(len(data) - 1)
+            data[index] ^= 1 << self._random.randrange(8)
+        try:
+            os.write(self.port.master, bytes(data))
+        except (BlockingIOError, OSError):
+            pass  # nobody reading and the pty buffer is full: the frame is lost, as on a UART
+
+
+class BoardEmulator:
+    """Runs the board model in real time behind a BoardLink."""
+
+    def __init__(self, model: BoardModel, link: BoardLink):
+        self.model = model
+        self.link = link
+        self.port = link.port
         self.pending_signals: List[int] = []
         self.running = True
         self._in_timeout = True  # motors are off from boot until the first command
@@ -114,24 +202,17 @@ class BoardEmulator:
 
     def run(self, physics_step_s: float = 0.005) -> None:
         """Run until SIGINT/SIGTERM."""
-        self.port.plug()
+        self.link.plug()
         self.say(f'plugged in at {self.port.link} ({self.port.device})')
-        start = last = time.monotonic()
-        due = {t: start for t in self.periods_s}
+        last = time.monotonic()
         while self.running:
             self._handle_signals()
             now = time.monotonic()
             self.model.step(now - last)
             last = now
             self._report_timeout_changes()
-            if self.port.plugged:
-                self._receive()
-                for msg_type, when in due.items():
-                    if now >= when:
-                        self._send(self._message(msg_type))
-                        # Keep the rate; skip beats missed while descheduled.
-                        due[msg_type] = max(when + self.periods_s[msg_type], now)
-            wait = min(min(due.values()) - time.monotonic(), physics_step_s)
+            self.link.poll(now)
+            wait = min(self.link.next_due_s() - time.monotonic(), physics_step_s)
             readable = [self.port.master] if self.port.plugged else []
             try:
                 select.select(readable, [], [], max(wait, 0.0))
@@ -150,8 +231,7 @@ class BoardEmulator:
                 self.port.unplug()
                 self.say('unplugged')
             elif signum == signal.SIGUSR2 and not self.port.plugged:
-                self.decoder = proto.FrameDecoder()
-                self.port.plug()
+                self.link.plug()
                 self.say(f'plugged in at {self.port.link} ({self.port.device})')
 
     def _report_timeout_changes(self) -> None:
@@ -161,54 +241,6 @@ class BoardEmulator:
             self.say('no effort command within '
                      f'{self.model.command_timeout_ms} ms: motors stopped' if in_timeout
                      else 'effort commands resumed')
-
-    def _receive(self) -> None:
-        try:
-            data = os.read(self.port.master, 4096)
-        except BlockingIOError:
-            return
-        except OSError as error:
-            if error.errno == errno.EIO:  # no process has the device open
-                return
-            raise
-        for frame in self.decoder.feed(data):
-            message = frame.message
-            if isinstance(message, proto.MotorEfforts):
-                self.model.command(message.efforts, message.command_timeout_ms, frame.seq)
-            elif isinstance(message, proto.ClearFaults):
-                self.model.clear_faults(message.faults)
-
-    def _message(self, msg_type: proto.MessageType) -> proto.Message:
-        model = self.model
-        board_time_us = model.time_us % (1 << 32)
-        if msg_type == proto.MessageType.ENCODER_TICKS:
-            return proto.EncoderTicks(board_time_us, model.ticks)
-        if msg_type == proto.MessageType.IMU_SAMPLE:
-            accel, gyro = model.imu()
-            return proto.ImuSample(board_time_us, accel, gyro)
-        stats = self.decoder.stats
-        bad = stats.errors
-        faults = model.faults
-        if bad > self.rx_bad_frames_reported:
-            faults |= proto.FaultFlags.RX_ERRORS
-            self.rx_bad_frames_reported = bad
-        return proto.BoardStatus(board_time_us, faults, 12000, min(bad, 0xFFFF),
-                                 model.last_command_seq)
-
-    def _send(self, message: proto.Message) -> None:
-        msg_type = proto.message_type_of(message)
-        seq = self.tx_seq[msg_type]
-        self.tx_seq[msg_type] = (seq + 1) % (1 << 16)
-        data = bytearray(proto.encode_frame(message, seq))
-        if self.drop_rate and self._random.random() < self.drop_rate:
-            return
-        if self.corrupt_rate and self._random.random() < self.corrupt_rate:
-            index = self._random.randrange(len(data) - 1)
-            data[index] ^= 1 << self._random.randrange(8)
-        try:
-            os.write(self.port.master, bytes(data))
-        except (BlockingIOError, OSError):
-            pass  # nobody reading and the pty buffer is full: the frame is lost, as on a UART
 
 
 def parse_args(argv: List[str]) -> argparse.Namespace:
@@ -265,8 +297,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         tick_offset=args.tick_offset)
     for name in args.block_wheel:
         model.wheels[WHEELS.index(name)].blocked = True
-    emulator = BoardEmulator(model, PtyPort(args.link), args.ticks_rate_hz, args.imu_rate_hz,
-                             args.status_rate_hz, args.drop_rate, args.corrupt_rate, args.seed)
+    link = BoardLink(model, PtyPort(args.link), args.ticks_rate_hz, args.imu_rate_hz,
+                     args.status_rate_hz, args.drop_rate, args.corrupt_rate, args.seed)
+    emulator = BoardEmulator(model, link)
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):
         signal.signal(signum, emulator.on_signal)
     try:
