@@ -9,14 +9,15 @@ covariances from the ``imu_*_stddev_*`` parameters, no orientation) and
 ``/diagnostics`` (link state, board faults, frame statistics). Service
 ``~/clear_board_faults`` (std_srvs/Trigger) asks the board to clear latched faults.
 
-Safety: efforts older than ``effort_timeout_s`` (steady clock) are replaced by zero;
+Safety: efforts older than ``effort_timeout_s`` are replaced by zero;
 on link loss (read error, port gone, or no valid frame for ``link_timeout_s``) the
 stored command is zeroed and the node reopens ``port`` every ``reconnect_period_s``;
 after a reconnect only efforts received after it are sent. A zero command is written
 before the port is closed when it still takes one; the board itself stops the motors
 when commands stop for ``board_command_timeout_ms`` (motor_params.yaml). The link's
-timers run on the steady clock whatever ROS time is. A board that never answers is
-retried quietly after one error message.
+timers and timeouts run on the steady clock (a real board lives in real time even when
+ROS time stalls), or on ROS time with ``link_clock: ros`` (a board inside the simulator).
+A board that never answers is retried quietly after one error message.
 """
 
 import math
@@ -106,21 +107,33 @@ class HardwareInterface(Node):
             Float32MultiArray, 'motor_efforts', self.on_efforts, 10)
         self.clear_faults_srv = self.create_service(Trigger, '~/clear_board_faults',
                                                     self.on_clear_faults)
-        # The link is real time whatever ROS time is: its timers use the steady clock.
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        # A real board (or the real-time emulator) lives in real time: the link's timers
+        # and timeouts use the steady clock, even if ROS time stalls. A board inside the
+        # simulator lives in simulated time (link_clock: ros), which may run faster or
+        # slower than the wall clock.
+        link_clock = self.declare_parameter('link_clock', 'steady').value
+        if link_clock not in ('steady', 'ros'):
+            raise ValueError(f"parameter link_clock must be 'steady' or 'ros', got {link_clock!r}")
+        self._link_clock = (self.get_clock() if link_clock == 'ros'
+                            else Clock(clock_type=ClockType.STEADY_TIME))
         self.command_timer = self.create_timer(self.keepalive_s, self.on_command_timer,
-                                               clock=steady)
+                                               clock=self._link_clock)
         self.link_timer = self.create_timer(self.link_timeout_s / 4, self.check_link,
-                                            clock=steady)
+                                            clock=self._link_clock)
         self.connect_timer = self.create_timer(self.reconnect_period_s, self.connect,
-                                               clock=steady)
-        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics, clock=steady)
+                                               clock=self._link_clock)
+        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics,
+                                            clock=self._link_clock)
         self._reader = threading.Thread(target=self._read_loop, name='serial_reader',
                                         daemon=True)
         self._reader.start()
         self.get_logger().info(f'Hardware interface started, board at {self.port} '
                                f'(protocol v{proto.PROTOCOL_VERSION})')
         self.connect()
+
+    def _now(self) -> float:
+        """Link time in seconds: steady clock, or simulated time with use_sim_time."""
+        return self._link_clock.now().nanoseconds * 1e-9
 
     # Commands to the board -------------------------------------------------------------
     def on_efforts(self, msg: Float32MultiArray) -> None:
@@ -136,12 +149,12 @@ class HardwareInterface(Node):
                                       throttle_duration_sec=5.0)
         with self._lock:
             self._efforts = tuple(max(-1.0, min(1.0, v)) for v in values)
-            self._efforts_at = time.monotonic()
+            self._efforts_at = self._now()
         self._send_efforts()
 
     def on_command_timer(self) -> None:
         """Keep the board's command timeout from firing while the link is up."""
-        if time.monotonic() - self._last_sent_at >= 0.9 * self.keepalive_s:
+        if self._now() - self._last_sent_at >= 0.9 * self.keepalive_s:
             self._send_efforts()
 
     def on_clear_faults(self, _request, response):
@@ -153,7 +166,7 @@ class HardwareInterface(Node):
         return response
 
     def _send_efforts(self) -> None:
-        now = time.monotonic()
+        now = self._now()
         with self._lock:
             fresh = (now - self._efforts_at <= self.effort_timeout_s
                      and self._efforts_at > self._connected_at)
@@ -208,7 +221,7 @@ class HardwareInterface(Node):
         with self._lock:
             self._add_totals()
             self._serial = port
-            self._connected_at = time.monotonic()
+            self._connected_at = self._now()
             self._frames_this_connection = 0
             self._decoder = proto.FrameDecoder()
             self._trackers = {}
@@ -223,7 +236,7 @@ class HardwareInterface(Node):
         port = self._serial
         if port is None:
             return
-        silent_s = time.monotonic() - max(self._last_frame_at, self._connected_at)
+        silent_s = self._now() - max(self._last_frame_at, self._connected_at)
         if silent_s > self.link_timeout_s:
             self._lose_link(port, f'no valid frame from the board for {silent_s:.2f} s')
 
@@ -304,7 +317,7 @@ class HardwareInterface(Node):
                 if self._quiet:
                     self._quiet = False
                     self.get_logger().info(f'The board at {self.port} answers')
-                self._last_frame_at = time.monotonic()
+                self._last_frame_at = self._now()
                 self._frames_this_connection += 1
                 self._handle(frame)
 
