@@ -24,7 +24,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
-    ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml'),
+    ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml', 'worlds/*.yaml',
+              'worlds/*.pgm'),
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
@@ -36,6 +37,7 @@ setup(
     entry_points={
         'console_scripts': [
             'simulation_node = robot_simulation.simulation_node:main',
+            'simulator_node = robot_simulation.simulator_node:main',
         ],
     },
 )

@@ -23,8 +23,13 @@ def _raise_keyboard_interrupt(_signum, _frame):
 
 
 def run_node(node_factory: Callable[[], Node], name: str,
-             args: Optional[List[str]] = None) -> int:
-    """Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code."""
+             args: Optional[List[str]] = None,
+             spin: Optional[Callable[[Node], None]] = None) -> int:
+    """
+    Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code.
+
+    ``spin`` replaces ``rclpy.spin`` for nodes that drive their own loop.
+    """
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RuntimeError as error:  # rcl failed, e.g. a parameter file that is not YAML
@@ -41,7 +46,7 @@ def run_node(node_factory: Callable[[], Node], name: str,
         rclpy.try_shutdown()
         return 0
     try:
-        rclpy.spin(node)
+        (spin or rclpy.spin)(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -27,6 +27,15 @@ def declare_robot_config(node: Node) -> RobotConfig:
     return robot_config_from_parameters(values)
 
 
+def declare_number(node: Node, name: str, default: float) -> float:
+    """Declare a numeric parameter that accepts 2 as well as 2.0; return it as float."""
+    value = node.declare_parameter(
+        name, default, ParameterDescriptor(dynamic_typing=True)).value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f'parameter {name} must be a number, got {value!r}')
+    return float(value)
+
+
 def positive(name: str, value: float) -> float:
     """Return value as float if finite and > 0, else raise ValueError naming the parameter."""
     value = float(value)

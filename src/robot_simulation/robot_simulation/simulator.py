@@ -1,0 +1,179 @@
+"""
+The simulated robot in its world, stepped in simulated time (pure, no ROS, no I/O).
+
+:class:`Simulation` owns the world (static geometry, moving obstacles, test zone),
+the mecanum rigid-body physics with DC motors and roller slip
+(:mod:`robot_simulation.physics`), the lidar and IMU models
+(:mod:`robot_simulation.sensors`) and :class:`SimulatedBoard`, which gives the
+physics the interface of the ESP32 firmware model so that
+:class:`mecanum_control.board_emulator.BoardLink` can serve it on a pseudo-terminal
+exactly like the real board's serial port. Time only advances in :meth:`step`, so a
+run is deterministic for a given seed whatever the wall clock does.
+Units: SI, REP-103; world frame x east, y north; wheel order FL, FR, RL, RR.
+"""
+
+from dataclasses import dataclass, field
+import math
+from typing import List, Optional, Sequence, Tuple
+
+from mecanum_control.esp32_protocol import FaultFlags
+from mecanum_control.robot_config import RobotConfig
+import numpy as np
+from robot_simulation.physics import MecanumPhysics, PhysicsParams
+from robot_simulation.sensors import ImuConfig, ImuModel, Lidar, LidarConfig
+from robot_simulation.world import World
+
+INT32_RANGE = 1 << 32
+
+
+def to_int32(value: int) -> int:
+    """Wrap an integer into the signed 32-bit range of a hardware counter."""
+    return (value + (1 << 31)) % INT32_RANGE - (1 << 31)
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    """Rates and sensor models of a simulation run."""
+
+    physics_rate_hz: float = 200.0
+    lidar: LidarConfig = field(default_factory=LidarConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.physics_rate_hz) and self.physics_rate_hz >= 50.0):
+            raise ValueError(f'physics_rate_hz must be >= 50, got {self.physics_rate_hz}')
+
+
+class SimulatedBoard:
+    """
+    The ESP32 firmware's view of the simulated robot (BoardModel's interface).
+
+    Efforts from the host become the physics' motor duties; the board zeroes them
+    when no command arrives for the command timeout (and from boot), as the real
+    firmware does. Encoder counts are the wheel angles in whole quadrature counts.
+    """
+
+    def __init__(self, simulation: 'Simulation', rad_per_count: float,
+                 command_timeout_ms: int):
+        self._sim = simulation
+        self.rad_per_count = rad_per_count
+        self.command_timeout_ms = command_timeout_ms
+        self.efforts: List[float] = [0.0] * 4
+        self.last_command_us: Optional[int] = None
+        self.last_command_seq = 0
+        self.faults = FaultFlags.COMMAND_TIMEOUT
+        self.commands_received = 0
+
+    @property
+    def time_us(self) -> int:
+        """Return the board clock: simulated time in microseconds."""
+        return int(round(self._sim.time_s * 1e6))
+
+    def command(self, efforts: Sequence[float], command_timeout_ms: int, seq: int) -> None:
+        """Apply the host's effort command: duty -1..1 per wheel, its timeout and sequence."""
+        self.efforts = [max(-1.0, min(1.0, float(e))) for e in efforts]
+        self.command_timeout_ms = command_timeout_ms
+        self.last_command_us = self.time_us
+        self.last_command_seq = seq
+        self.commands_received += 1
+        self.faults &= ~FaultFlags.COMMAND_TIMEOUT
+
+    def clear_faults(self, faults: FaultFlags) -> None:
+        """Clear latched fault bits."""
+        self.faults &= ~faults
+
+    def duties(self) -> List[float]:
+        """Duties to apply now: zero after the command timeout (the firmware's rule)."""
+        if (self.last_command_us is None
+                or self.time_us - self.last_command_us > self.command_timeout_ms * 1000):
+            self.faults |= FaultFlags.COMMAND_TIMEOUT
+            self.efforts = [0.0] * 4
+        return self.efforts
+
+    @property
+    def ticks(self) -> Tuple[int, int, int, int]:
+        """Return the encoder counters (signed 32-bit, wrapping), FL FR RL RR."""
+        angles = self._sim.physics.state.wheel_angles_rad
+        return tuple(to_int32(math.floor(a / self.rad_per_count)) for a in angles)
+
+    def imu(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]:
+        """Return one IMU sample (accel m/s^2, gyro rad/s) of the simulated body."""
+        return self._sim.imu_sample()
+
+
+class Simulation:
+    """One robot in one world, advanced one physics step at a time."""
+
+    def __init__(self, world: World, robot: RobotConfig,
+                 config: SimulatorConfig = SimulatorConfig()):
+        self.world = world
+        self.robot = robot
+        self.config = config
+        self.dt_s = 1.0 / config.physics_rate_hz
+        self.time_s = 0.0
+        self.steps = 0
+        x, y, yaw = world.robot_start
+        self.physics = MecanumPhysics(PhysicsParams.from_robot_config(robot), world.segments,
+                                      x=x, y=y, yaw=yaw)
+        self.lidar = Lidar(config.lidar, world.segments, seed=config.seed)
+        self.imu_model = ImuModel(config.imu, seed=config.seed + 1)
+        self.board = SimulatedBoard(self, robot.rad_per_count, robot.board_command_timeout_ms)
+        self.left_test_zone_count = 0
+        self._last_imu_s = 0.0
+        self._in_zone = world.in_test_zone(x, y)
+        self._static_circles = np.array(
+            [(c.center[0], c.center[1], c.radius_m) for c in world.circles],
+            dtype=float).reshape(-1, 3)
+
+    def step(self) -> None:
+        """Advance one physics step with the board's current duties."""
+        self.physics.step(self.board.duties(), self.dt_s, self.all_circles())
+        self.steps += 1
+        self.time_s = self.steps * self.dt_s
+        state = self.physics.state
+        in_zone = self.world.in_test_zone(state.x, state.y)
+        if self._in_zone and not in_zone:
+            self.left_test_zone_count += 1
+        self._in_zone = in_zone
+
+    def moving_circles(self) -> np.ndarray:
+        """Return the moving obstacles now, as rows (x, y, radius)."""
+        movers = self.world.moving_obstacles
+        if not movers:
+            return np.zeros((0, 3))
+        rows = []
+        for mover in movers:
+            mx, my = mover.position_at(self.time_s)
+            rows.append((mx, my, mover.radius_m))
+        return np.array(rows, dtype=float)
+
+    def all_circles(self) -> np.ndarray:
+        """Return the static circular obstacles and the moving ones, as rows (x, y, radius)."""
+        if not self.world.moving_obstacles:
+            return self._static_circles
+        return np.vstack([self._static_circles, self.moving_circles()])
+
+    def scan(self) -> np.ndarray:
+        """One lidar scan from the current pose (float32 ranges, REP-117)."""
+        state = self.physics.state
+        return self.lidar.scan(state.x, state.y, state.yaw, self.all_circles())
+
+    def imu_sample(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]:
+        """One IMU sample of the body now (accel m/s^2, gyro rad/s, IMU frame = base_link)."""
+        state = self.physics.state
+        since_last_s = self.time_s - self._last_imu_s
+        self._last_imu_s = self.time_s
+        accel, gyro = self.imu_model.sample((state.vx, state.vy, state.wz),
+                                            self.physics.body_velocity_rate, since_last_s)
+        return tuple(float(a) for a in accel), tuple(float(g) for g in gyro)
+
+    @property
+    def in_test_zone(self) -> bool:
+        """Tell whether the robot's centre is inside the world's authorised test zone."""
+        return self._in_zone
+
+    @property
+    def collision_count(self) -> int:
+        """Return the number of collisions so far (each new contact counts once)."""
+        return self.physics.collision_count

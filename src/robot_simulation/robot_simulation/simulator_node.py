@@ -1,0 +1,192 @@
+"""
+simulator_node: the physics simulator of the robot in a world, the source of /clock.
+
+The robot is driven at wheel level, like the real one: the node serves a simulated
+ESP32 on a pseudo-terminal (``board_port``, a symlink) speaking the control
+package's serial protocol, so hardware_interface, velocity_controller,
+encoder_reader and motor_controller run unchanged on top (launch them with
+``use_sim_time`` and hardware_interface's ``link_clock: ros``).
+
+Publishes ``/clock`` (rosgraph_msgs/Clock, every ``clock_period_s`` of simulated
+time), ``scan`` (sensor_msgs/LaserScan in ``laser_frame_id``, REP-117: +inf no
+return), ``ground_truth/odom`` (nav_msgs/Odometry of base_link in the simulator's
+``world_frame_id``; for evaluation only, never for the robot's own software) and
+``simulation/collisions`` (std_msgs/UInt32, the number of collisions so far).
+The IMU and the wheel encoders reach ROS through the board, as on the robot.
+
+Parameters: ``world`` (name of an installed world or a path; 'apartment'), ``seed``
+(0), ``real_time_factor`` (1.0; 0 runs as fast as possible), ``physics_rate_hz``
+(200), ``clock_period_s`` (0.005), ``ground_truth_rate_hz`` (50), lidar
+``lidar_beams`` (360), ``lidar_range_max_m`` (12.0), ``lidar_rate_hz`` (10.0),
+``lidar_noise_stddev_m`` (0.01), IMU ``imu_gyro_noise_stddev_rad_s`` (0.005),
+``imu_accel_noise_stddev_m_s2`` (0.05), and the robot parameters of
+motor_params.yaml. The simulator never uses sim time itself (it makes it).
+"""
+
+import math
+from pathlib import Path
+import sys
+import time
+
+from builtin_interfaces.msg import Time
+from mecanum_control.board_emulator import BoardLink, PtyPort
+from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.node_main import run_node
+from mecanum_control.parameters import declare_number, declare_robot_config, positive
+from nav_msgs.msg import Odometry
+import rclpy
+from rclpy.node import Node
+from robot_simulation.sensors import ImuConfig, LidarConfig
+from robot_simulation.simulator import Simulation, SimulatorConfig
+from robot_simulation.world import find_world, load_world
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import UInt32
+
+
+def stamp(time_s: float) -> Time:
+    """builtin_interfaces/Time of a simulated time in seconds."""
+    sec, nanosec = divmod(int(round(time_s * 1e9)), 10 ** 9)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+class SimulatorNode(Node):
+    """Steps the simulation and publishes what its sensors see."""
+
+    def __init__(self):
+        super().__init__('simulator')
+        if self.get_parameter('use_sim_time').value:
+            raise ValueError('the simulator makes /clock: do not set use_sim_time on it')
+        robot = declare_robot_config(self)
+        declare = self.declare_parameter
+        world_path = find_world(str(declare('world', 'apartment').value))
+        self.world = load_world(world_path)
+        number = lambda name, default: declare_number(self, name, default)  # noqa: E731
+        self.real_time_factor = number('real_time_factor', 1.0)
+        if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0.0):
+            raise ValueError(f'real_time_factor must be >= 0 (0: as fast as possible), got '
+                             f'{self.real_time_factor}')
+        self.clock_period_s = positive('clock_period_s', number('clock_period_s', 0.005))
+        ground_truth_rate_hz = positive('ground_truth_rate_hz',
+                                        number('ground_truth_rate_hz', 50.0))
+        lidar = LidarConfig(
+            beams=int(declare('lidar_beams', 360).value),
+            range_max_m=number('lidar_range_max_m', 12.0),
+            rate_hz=number('lidar_rate_hz', 10.0),
+            noise_stddev_m=number('lidar_noise_stddev_m', 0.01))
+        imu = ImuConfig(
+            gyro_noise_stddev_rad_s=number('imu_gyro_noise_stddev_rad_s', 0.005),
+            accel_noise_stddev_m_s2=number('imu_accel_noise_stddev_m_s2', 0.05))
+        config = SimulatorConfig(
+            physics_rate_hz=number('physics_rate_hz', 200.0),
+            lidar=lidar, imu=imu, seed=int(declare('seed', 0).value))
+        self.laser_frame_id = str(declare('laser_frame_id', 'laser').value)
+        self.world_frame_id = str(declare('world_frame_id', 'world').value)
+        self.base_frame_id = str(declare('base_frame_id', 'base_link').value)
+        board_port = str(declare('board_port', '').value)
+
+        self.sim = Simulation(self.world, robot, config)
+        self.link = None
+        if board_port:
+            self.link = BoardLink(self.sim.board, PtyPort(Path(board_port)),
+                                  seed=config.seed + 2)
+            self.link.plug()
+        self.scan_period_s = 1.0 / lidar.rate_hz
+        self.truth_period_s = 1.0 / ground_truth_rate_hz
+        self._next = {'clock': 0.0, 'scan': 0.0, 'truth': 0.0}
+        self._reported_collisions = 0
+
+        self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
+        self.truth_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
+        self.collision_pub = self.create_publisher(UInt32, 'simulation/collisions', 10)
+        x, y, yaw = self.world.robot_start
+        where = f'board on {board_port}' if board_port else 'no board link'
+        self.get_logger().info(
+            f'Simulating world {self.world.name!r} ({world_path}), robot at ({x:.2f}, '
+            f'{y:.2f}, {math.degrees(yaw):.0f} deg), physics {config.physics_rate_hz:.0f} Hz, '
+            f'real-time factor {self.real_time_factor or "max"}, {where}')
+
+    def advance(self) -> None:
+        """One physics step, then everything due at the new simulated time."""
+        sim = self.sim
+        sim.step()
+        now = sim.time_s
+        if self.link is not None:
+            self.link.poll(now)
+        if now + 1e-9 >= self._next['clock']:
+            self._next['clock'] += self.clock_period_s
+            self.clock_pub.publish(Clock(clock=stamp(now)))
+        if now + 1e-9 >= self._next['truth']:
+            self._next['truth'] += self.truth_period_s
+            self.publish_ground_truth(now)
+        if now + 1e-9 >= self._next['scan']:
+            self._next['scan'] += self.scan_period_s
+            self.publish_scan(now)
+        if sim.collision_count != self._reported_collisions:
+            self._reported_collisions = sim.collision_count
+            state = sim.physics.state
+            self.get_logger().warning(
+                f'Collision #{sim.collision_count} at ({state.x:.2f}, {state.y:.2f})')
+            self.collision_pub.publish(UInt32(data=sim.collision_count))
+
+    def publish_scan(self, now: float) -> None:
+        """Publish one lidar scan."""
+        lidar = self.sim.lidar
+        config = lidar.config
+        msg = LaserScan()
+        msg.header.stamp = stamp(now)
+        msg.header.frame_id = self.laser_frame_id
+        msg.angle_min = float(config.angle_min_rad)
+        msg.angle_increment = float(lidar.angle_increment_rad)
+        msg.angle_max = float(lidar.last_beam_angle_rad)
+        msg.time_increment = float(lidar.time_increment_s)
+        msg.scan_time = float(lidar.scan_time_s)
+        msg.range_min = float(config.range_min_m)
+        msg.range_max = float(config.range_max_m)
+        msg.ranges = self.sim.scan().tolist()
+        self.scan_pub.publish(msg)
+
+    def publish_ground_truth(self, now: float) -> None:
+        """Publish the true pose and body twist (evaluation only)."""
+        state = self.sim.physics.state
+        msg = Odometry()
+        msg.header.stamp = stamp(now)
+        msg.header.frame_id = self.world_frame_id
+        msg.child_frame_id = self.base_frame_id
+        msg.pose.pose.position.x = state.x
+        msg.pose.pose.position.y = state.y
+        qx, qy, qz, qw = quaternion_from_yaw(state.yaw)
+        q = msg.pose.pose.orientation
+        q.x, q.y, q.z, q.w = qx, qy, qz, qw
+        msg.twist.twist.linear.x = state.vx
+        msg.twist.twist.linear.y = state.vy
+        msg.twist.twist.angular.z = state.wz
+        self.truth_pub.publish(msg)
+
+    def run(self) -> None:
+        """Step forever, paced to real_time_factor, serving ROS callbacks in between."""
+        executor = rclpy.get_global_executor()
+        executor.add_node(self)
+        start = time.monotonic()
+        while rclpy.ok():
+            self.advance()
+            executor.spin_once(timeout_sec=0.0)
+            if self.real_time_factor > 0.0:
+                wait = start + self.sim.time_s / self.real_time_factor - time.monotonic()
+                if wait > 0.0:
+                    time.sleep(wait)
+
+    def close(self) -> None:
+        """Unplug the simulated board (removes its link)."""
+        if self.link is not None and self.link.port.plugged:
+            self.link.port.unplug()
+
+
+def main(args=None) -> int:
+    """Run the simulator until Ctrl-C or SIGTERM."""
+    return run_node(SimulatorNode, 'simulator', args, spin=lambda node: node.run())
+
+
+if __name__ == '__main__':
+    sys.exit(main())
