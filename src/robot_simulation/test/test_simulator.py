@@ -1,0 +1,130 @@
+"""Tests of the simulation core: the simulated board, determinism, zones and collisions."""
+
+import math
+from pathlib import Path
+import textwrap
+
+from mecanum_control.esp32_protocol import FaultFlags
+from mecanum_control.robot_config import default_config_path, load_robot_config
+import numpy as np
+import pytest
+from robot_simulation.sensors import ImuConfig, LidarConfig
+from robot_simulation.simulator import Simulation, SimulatorConfig, to_int32
+from robot_simulation.world import find_world, load_world
+
+ROBOT = load_robot_config(default_config_path())
+
+
+def box_world(tmp_path: Path, zone: str = '') -> Path:
+    """A 4 m x 3 m empty room, robot at (1, 1.5) facing +x; optional test zone."""
+    path = tmp_path / 'box.yaml'
+    path.write_text(textwrap.dedent(f"""
+        world:
+          name: box
+          bounds_m: [0.0, 0.0, 4.0, 3.0]
+          {zone}
+          robot_start: {{x_m: 1.0, y_m: 1.5, yaw_deg: 0.0}}
+        """))
+    return path
+
+
+def quiet_config(seed: int = 0) -> SimulatorConfig:
+    """Sensors without noise or bias, for hand-worked numbers."""
+    return SimulatorConfig(
+        lidar=LidarConfig(noise_stddev_m=0.0),
+        imu=ImuConfig(gyro_noise_stddev_rad_s=0.0, gyro_bias_stddev_rad_s=0.0,
+                      accel_noise_stddev_m_s2=0.0, accel_bias_stddev_m_s2=0.0),
+        seed=seed)
+
+
+def drive(sim: Simulation, duties, seconds: float) -> None:
+    """Command duties every 0.1 s of simulated time (within the board timeout)."""
+    for step in range(int(round(seconds / sim.dt_s))):
+        if step % 20 == 0:
+            sim.board.command(duties, 250, step)
+        sim.step()
+
+
+def test_to_int32_hand_cases():
+    """Counters wrap like a signed 32-bit register."""
+    assert to_int32(2 ** 31) == -2 ** 31
+    assert to_int32(-2 ** 31 - 1) == 2 ** 31 - 1
+    assert to_int32(5) == 5
+
+
+def test_board_is_in_command_timeout_from_boot_and_does_not_move(tmp_path):
+    """Without commands the duties are zero and COMMAND_TIMEOUT is set."""
+    sim = Simulation(load_world(box_world(tmp_path)), ROBOT, quiet_config())
+    for _ in range(100):
+        sim.step()
+    assert sim.board.faults & FaultFlags.COMMAND_TIMEOUT
+    assert sim.physics.state.x == pytest.approx(1.0)
+
+
+def test_board_stops_the_wheels_when_commands_stop(tmp_path):
+    """After 250 ms without a command the duties drop to zero and the robot stops."""
+    sim = Simulation(load_world(box_world(tmp_path)), ROBOT, quiet_config())
+    sim.board.command([0.3] * 4, 250, 1)
+    for _ in range(40):  # 0.2 s: within the timeout
+        sim.step()
+    assert sim.board.efforts == [0.3] * 4 and not sim.board.faults
+    for _ in range(20):  # 0.3 s in all: past it
+        sim.step()
+    assert sim.board.efforts == [0.0] * 4
+    assert sim.board.faults & FaultFlags.COMMAND_TIMEOUT
+    for _ in range(200):
+        sim.step()
+    assert abs(sim.physics.state.vx) < 1e-6
+
+
+def test_ticks_are_the_wheel_angles_in_whole_counts(tmp_path):
+    """Counts = floor(angle / (2 pi / 1320)) for each wheel."""
+    sim = Simulation(load_world(box_world(tmp_path)), ROBOT, quiet_config())
+    drive(sim, [0.2] * 4, 0.5)
+    angles = sim.physics.state.wheel_angles_rad
+    expected = tuple(math.floor(a / (2 * math.pi / 1320)) for a in angles)
+    assert sim.board.ticks == expected
+    assert all(t > 0 for t in expected)
+
+
+def test_same_seed_same_run_and_another_seed_other_noise(tmp_path):
+    """Two runs with one seed give identical poses, scans and IMU samples."""
+    world = load_world(find_world('apartment'))
+
+    def run(seed):
+        sim = Simulation(world, ROBOT, SimulatorConfig(seed=seed))
+        drive(sim, [0.4, 0.2, 0.4, 0.2], 1.0)
+        state = sim.physics.state
+        return (state.x, state.y, state.yaw), sim.scan(), sim.imu_sample()
+    first, second, other = run(3), run(3), run(4)
+    assert first[0] == second[0]
+    assert np.array_equal(first[1], second[1]) and first[2] == second[2]
+    assert not np.array_equal(first[1], other[1])
+
+
+def test_lidar_in_the_box_room_reads_the_wall_distance(tmp_path):
+    """From (1, 1.5) facing +x the east wall (x = 4) is 3 m ahead, the west one 1 m behind."""
+    sim = Simulation(load_world(box_world(tmp_path)), ROBOT, quiet_config())
+    ranges = sim.scan()
+    increment = 2 * math.pi / 360
+    ahead = round(math.pi / increment)  # beams start at -pi
+    assert ranges[ahead] == pytest.approx(3.0, abs=1e-5)
+    assert ranges[0] == pytest.approx(1.0, abs=1e-5)
+
+
+def test_driving_into_a_wall_stops_there_and_counts_one_collision(tmp_path):
+    """Full speed at the east wall: the centre stops 0.2 m (footprint) from it, once."""
+    sim = Simulation(load_world(box_world(tmp_path)), ROBOT, quiet_config())
+    drive(sim, [0.5] * 4, 12.0)
+    assert sim.physics.state.x == pytest.approx(4.0 - ROBOT.footprint_radius_m, abs=1e-3)
+    assert sim.collision_count == 1
+
+
+def test_leaving_the_test_zone_is_counted(tmp_path):
+    """The zone covers x < 2: driving east leaves it once."""
+    zone = 'test_zone: [[0.1, 0.1], [2.0, 0.1], [2.0, 2.9], [0.1, 2.9]]'
+    sim = Simulation(load_world(box_world(tmp_path, zone)), ROBOT, quiet_config())
+    assert sim.in_test_zone
+    drive(sim, [0.4] * 4, 4.0)
+    assert not sim.in_test_zone
+    assert sim.left_test_zone_count == 1
