@@ -16,7 +16,7 @@ ROBOT = load_robot_config(default_config_path())
 
 
 def box_world(tmp_path: Path, zone: str = '') -> Path:
-    """A 4 m x 3 m empty room, robot at (1, 1.5) facing +x; optional test zone."""
+    """Write a 4 m x 3 m empty room, robot at (1, 1.5) facing +x, optional test zone."""
     path = tmp_path / 'box.yaml'
     path.write_text(textwrap.dedent(f"""
         world:
