@@ -125,6 +125,10 @@ class Simulation:
         self._static_circles = np.array(
             [(c.center[0], c.center[1], c.radius_m) for c in world.circles],
             dtype=float).reshape(-1, 3)
+        # Static rows, then one row per moving obstacle, refreshed once per time step.
+        self._circles = np.vstack([self._static_circles, np.array(
+            [(0.0, 0.0, m.radius_m) for m in world.moving_obstacles]).reshape(-1, 3)])
+        self._circles_time_s = None
 
     def step(self) -> None:
         """Advance one physics step with the board's current duties."""
@@ -139,20 +143,18 @@ class Simulation:
 
     def moving_circles(self) -> np.ndarray:
         """Return the moving obstacles now, as rows (x, y, radius)."""
-        movers = self.world.moving_obstacles
-        if not movers:
-            return np.zeros((0, 3))
-        rows = []
-        for mover in movers:
-            mx, my = mover.position_at(self.time_s)
-            rows.append((mx, my, mover.radius_m))
-        return np.array(rows, dtype=float)
+        return self.all_circles()[len(self._static_circles):]
 
     def all_circles(self) -> np.ndarray:
         """Return the static circular obstacles and the moving ones, as rows (x, y, radius)."""
-        if not self.world.moving_obstacles:
-            return self._static_circles
-        return np.vstack([self._static_circles, self.moving_circles()])
+        circles = self._circles
+        if self._circles_time_s != self.time_s:
+            self._circles_time_s = self.time_s
+            row = len(self._static_circles)
+            for mover in self.world.moving_obstacles:
+                circles[row, 0], circles[row, 1] = mover.position_at(self.time_s)
+                row += 1
+        return circles
 
     def scan(self) -> np.ndarray:
         """One lidar scan from the current pose (float32 ranges, REP-117)."""

@@ -273,7 +273,15 @@ class World:
         """Return True if (x, y) in metres is inside the test zone, or when none is declared."""
         if self.test_zone is None:
             return True
-        return bool(points_in_polygon(np.array([x]), np.array([y]), self.test_zone)[0])
+        # One point: plain even-odd ray crossing is far cheaper than a numpy call.
+        inside = False
+        polygon = self.test_zone
+        x2, y2 = polygon[-1]
+        for x1, y1 in polygon:
+            if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+                inside = not inside
+            x2, y2 = x1, y1
+        return inside
 
     def to_occupancy_map(self, resolution_m: float = 0.05) -> OccupancyMap:
         """
