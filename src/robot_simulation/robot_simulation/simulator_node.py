@@ -12,6 +12,7 @@ time), ``scan`` (sensor_msgs/LaserScan in ``laser_frame_id``, REP-117: +inf no
 return), ``ground_truth/odom`` (nav_msgs/Odometry of base_link in the simulator's
 ``world_frame_id``; for evaluation only, never for the robot's own software) and
 ``simulation/collisions`` (std_msgs/UInt32, the number of collisions so far).
+Leaving the world's authorised test zone is logged as an error.
 The IMU and the wheel encoders reach ROS through the board, as on the robot.
 
 Parameters: ``world`` (name of an installed world or a path; 'apartment'), ``seed``
@@ -95,6 +96,7 @@ class SimulatorNode(Node):
         self.truth_period_s = 1.0 / ground_truth_rate_hz
         self._next = {'clock': 0.0, 'scan': 0.0, 'truth': 0.0}
         self._reported_collisions = 0
+        self._reported_zone_exits = 0
 
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
@@ -123,6 +125,12 @@ class SimulatorNode(Node):
         if now + 1e-9 >= self._next['scan']:
             self._next['scan'] += self.scan_period_s
             self.publish_scan(now)
+        if sim.left_test_zone_count != self._reported_zone_exits:
+            self._reported_zone_exits = sim.left_test_zone_count
+            state = sim.physics.state
+            self.get_logger().error(
+                f'The robot left the authorised test zone at ({state.x:.2f}, {state.y:.2f}) '
+                f'(exit #{sim.left_test_zone_count})')
         if sim.collision_count != self._reported_collisions:
             self._reported_collisions = sim.collision_count
             state = sim.physics.state
