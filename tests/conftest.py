@@ -203,26 +203,32 @@ class TestNode:
                 if self.context.ok():
                     raise
 
-    def start_clock(self, real_time_factor: float = 1.0, step_s: float = 0.005):
+    def start_clock(self, real_time_factor: float = 1.0, step_s: float = 0.005,
+                    follow_wall_clock: bool = False):
         """
-        Publish /clock from a thread every step_s of wall time.
+        Publish /clock from a thread, one step_s of simulated time per step.
 
-        Simulated time is elapsed wall time times real_time_factor, so it does not
-        drift from the wall clock when the test process is descheduled.
+        By default simulated time advances by exactly step_s per step, so it slows down
+        with this process (like a simulator on a loaded machine) and never jumps. With
+        follow_wall_clock it is the elapsed wall time times real_time_factor, for systems
+        that also contain real-time parts (the board emulator).
         """
         publisher = self.node.create_publisher(Clock, '/clock', QoSProfile(depth=10))
         start = time.monotonic()
 
         def run():
             while self.context.ok():
-                self.clock_ns = int((time.monotonic() - start) * real_time_factor * 1e9)
+                if follow_wall_clock:
+                    self.clock_ns = int((time.monotonic() - start) * real_time_factor * 1e9)
+                else:
+                    self.clock_ns += int(step_s * 1e9)
                 msg = Clock()
                 msg.clock.sec, msg.clock.nanosec = divmod(self.clock_ns, 10 ** 9)
                 try:
                     publisher.publish(msg)
                 except Exception:  # noqa: B902 - context shut down
                     return
-                time.sleep(step_s)
+                time.sleep(step_s / (1.0 if follow_wall_clock else real_time_factor))
         threading.Thread(target=run, daemon=True).start()
 
     def call(self, client, request, timeout: float = 15.0):

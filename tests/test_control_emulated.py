@@ -66,7 +66,7 @@ class Driver:
 def start_emulated(start_system, test_node, tmp_path):
     """Start the emulated control system with extra emulator options; wait until it runs."""
     def start(emulator_args: str = ''):
-        test_node.start_clock()
+        test_node.start_clock(follow_wall_clock=True)  # the emulated board is real time
         port = tmp_path / 'ttyESP32'
         system = start_system(
             'mecanum_control', 'emulated_control.launch.yaml', f'port:={port}',
