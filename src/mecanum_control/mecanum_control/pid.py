@@ -44,6 +44,9 @@ class PidGains:
     friction). max_effort: output limit, 0 < max_effort <= 1.
     derivative_filter_tau_s: time constant (s) of a first-order low-pass on the
     derivative term, 0 for none.
+    integral_freeze_rate_rad_s2: while the target changes faster than this (a ramp),
+    the integrator holds: the error then is mostly the measurement's delay, and
+    integrating it would overshoot once the ramp ends (inf: always integrate).
     """
 
     kp: float
@@ -53,9 +56,14 @@ class PidGains:
     static_effort: float = 0.0
     max_effort: float = 1.0
     derivative_filter_tau_s: float = 0.0
+    integral_freeze_rate_rad_s2: float = math.inf
 
     def __post_init__(self) -> None:
         """Validate: all finite, gains >= 0, 0 < max_effort <= 1, tau >= 0."""
+        rate = self.integral_freeze_rate_rad_s2
+        if not (isinstance(rate, (int, float)) and not math.isnan(rate) and rate > 0.0):
+            raise ValueError(
+                f'PidGains.integral_freeze_rate_rad_s2 must be > 0 (inf: never), got {rate!r}')
         for name in ('kp', 'ki', 'kd', 'kf', 'static_effort', 'derivative_filter_tau_s'):
             _check_finite_non_negative('PidGains', name, getattr(self, name))
         max_effort = self.max_effort
@@ -107,6 +115,7 @@ class PidController:
         self._integral = 0.0
         self._derivative = 0.0
         self._prev_measured: Optional[float] = None
+        self._prev_target = 0.0  # at rest: the first target is a step from 0
 
     @property
     def gains(self) -> PidGains:
@@ -128,6 +137,7 @@ class PidController:
         self._integral = 0.0
         self._derivative = 0.0
         self._prev_measured = None
+        self._prev_target = 0.0
 
     def update(self, target: float, measured: float, dt_s: float) -> float:
         """
@@ -161,7 +171,8 @@ class PidController:
                     alpha = dt_s / (g.derivative_filter_tau_s + dt_s)
                     self._derivative += alpha * (raw - self._derivative)
             increment = _scaled(g.ki, error) * dt_s
-            if math.isfinite(increment):
+            ramping = abs(target - self._prev_target) > g.integral_freeze_rate_rad_s2 * dt_s
+            if math.isfinite(increment) and not ramping:
                 candidate = _clamp(self._integral + increment, g.max_effort)
                 unclipped = base + candidate + self._derivative
                 # Clamping: refuse to integrate further into a saturation the error drives.
@@ -172,6 +183,7 @@ class PidController:
             derivative = 0.0  # no rate estimate without a time step
         # The next dt is measured from this call, so this is the previous measurement.
         self._prev_measured = measured
+        self._prev_target = target
         return _clamp(base + self._integral + derivative, g.max_effort)
 
 

@@ -56,7 +56,9 @@ class VelocityController(Node):
             kd=float(declare('kd', 0.0).value), kf=float(declare('kf', kf_default).value),
             static_effort=float(declare('static_effort', 0.0).value),
             max_effort=float(declare('max_effort', 1.0).value),
-            derivative_filter_tau_s=float(declare('derivative_filter_tau_s', 0.02).value))
+            derivative_filter_tau_s=float(declare('derivative_filter_tau_s', 0.02).value),
+            integral_freeze_rate_rad_s2=float(
+                declare('integral_freeze_rate_rad_s2', 10.0).value))
         stall = StallConfig(
             effort_threshold=float(declare('stall_effort_threshold', 0.6).value),
             velocity_threshold_rad_s=float(declare('stall_velocity_threshold_rad_s', 0.5).value),
