@@ -730,18 +730,26 @@ class MecanumPhysics:
         x, y = self._x, self._y
         found = self._find(x, y, circle_rows, RELEASE_CLEARANCE_M)
         pushed = False
+        yielding = set()  # circles whose push would drive the robot into a wall
         for _ in range(_PUSH_OUT_PASSES):
             deepest = None
             for item in found:
-                if item[2] < 0.0 and (deepest is None or item[2] < deepest[2]):
+                if (item[2] < 0.0 and (item[0], item[1]) not in yielding
+                        and (deepest is None or item[2] < deepest[2])):
                     deepest = item
             if deepest is None:
                 break
-            _, _, clearance, nx, ny = deepest
-            x -= clearance * nx
-            y -= clearance * ny
+            kind, index, clearance, nx, ny = deepest
+            new_x, new_y = x - clearance * nx, y - clearance * ny
+            new_found = self._find(new_x, new_y, circle_rows, RELEASE_CLEARANCE_M)
+            if kind == 'circle' and any(item[0] == 'segment' and item[2] < -1e-9
+                                        for item in new_found):
+                # Walls win: a person pressing the robot against a wall overlaps it
+                # (a collision) instead of pushing it through the wall.
+                yielding.add((kind, index))
+                continue
+            x, y, found = new_x, new_y, new_found
             pushed = True
-            found = self._find(x, y, circle_rows, RELEASE_CLEARANCE_M)
         touching = [item for item in found if item[2] <= TOUCH_TOLERANCE_M]
         if pushed:
             self._x, self._y = x, y

@@ -482,3 +482,25 @@ def test_invalid_inputs_raise(call):
     """Malformed duties, step sizes, obstacles and poses raise ValueError."""
     with pytest.raises(ValueError):
         call(MecanumPhysics(params()))
+
+
+@pytest.mark.parametrize('person_stops_at', [1.2, 0.2])
+def test_a_person_pressing_the_robot_against_a_wall_never_pushes_it_through(
+        person_stops_at):
+    """
+    A 0.1 m thick wall from x = 0.8 to 0.9; the robot (radius 0.2) rests at x = 1.3.
+
+    A person (radius 0.25) walks in from x = 4 towards the wall. The robot is pushed to
+    the wall's face (centre at 0.9 + 0.2 = 1.1) and stays on its side even when the
+    person's path goes on into the wall: walls win, the overlap counts as a collision.
+    """
+    wall = np.array([[0.8, -5.0, 0.8, 5.0], [0.9, -5.0, 0.9, 5.0],
+                     [0.8, -5.0, 0.9, -5.0], [0.8, 5.0, 0.9, 5.0]])
+    physics = MecanumPhysics(params(), wall, x=1.3, y=0.0)
+    lowest = math.inf
+    for step in range(800):
+        person_x = max(person_stops_at, 4.0 - 0.8 * step * 0.005)
+        physics.step([0.0] * 4, 0.005, np.array([[person_x, 0.0, 0.25]]))
+        lowest = min(lowest, physics.state.x)
+    assert lowest >= 1.1 - 1e-6
+    assert physics.collision_count >= 1
