@@ -14,8 +14,10 @@ import time
 from geometry_msgs.msg import Twist
 import pytest
 from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration
 
@@ -47,6 +49,16 @@ def test_lidar_sees_the_wall_at_its_known_distance(simulation):
     assert scan.ranges[ahead] == pytest.approx(WALL_AHEAD_M, abs=0.05)
     assert scan.range_max == pytest.approx(12.0)
     assert all(not math.isnan(r) for r in scan.ranges)
+    # The scan's frame is connected to the robot (latched /tf_static, as tf2 expects).
+    static = []
+    latched = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    test_node.node.create_subscription(TFMessage, '/tf_static', static.append, latched)
+    deadline = time.monotonic() + 10
+    while not static:
+        assert time.monotonic() < deadline, 'no /tf_static'
+        time.sleep(0.05)
+    mounts = {(t.header.frame_id, t.child_frame_id) for m in static for t in m.transforms}
+    assert ('base_link', 'laser') in mounts
 
 
 def test_forward_one_metre_moves_the_true_pose_one_metre(simulation):

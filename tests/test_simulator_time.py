@@ -46,4 +46,4 @@ def test_real_time_factor_zero_runs_as_fast_as_possible(ros_env, test_node):
     """real_time_factor 0: far faster than real time (the core alone does > 100x)."""
     rate = simulated_seconds_in(test_node, ros_env, '0', 3.0)
     print(f'simulator_node flat out: {rate:.1f} simulated s per wall s')
-    assert rate > 5.0
+    assert rate > 10.0

@@ -54,15 +54,20 @@ class PtyPort:
                     f'{self.link} exists and is not a pseudo-terminal link: refusing to '
                     'replace it (is it a real device?)')
         master, slave = os.openpty()
-        tty.setraw(slave)
-        os.set_blocking(master, False)
-        self.master, self._slave = master, slave
-        self.device = os.ttyname(slave)
-        tmp = self.link.with_name(f'.{self.link.name}.{os.getpid()}')
-        if tmp.is_symlink():
-            tmp.unlink()
-        os.symlink(self.device, tmp)
-        os.replace(tmp, self.link)
+        try:
+            tty.setraw(slave)
+            os.set_blocking(master, False)
+            device = os.ttyname(slave)
+            tmp = self.link.with_name(f'.{self.link.name}.{os.getpid()}')
+            if tmp.is_symlink():
+                tmp.unlink()
+            os.symlink(device, tmp)
+            os.replace(tmp, self.link)
+        except OSError:
+            os.close(master)
+            os.close(slave)
+            raise
+        self.master, self._slave, self.device = master, slave, device
         try:
             os.write(master, b'\x00')  # leading delimiter after boot (protocol doc, 1)
         except OSError:

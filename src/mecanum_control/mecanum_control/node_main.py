@@ -36,6 +36,8 @@ def run_node(node_factory: Callable[[], Node], name: str,
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
         return 2
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    # Also when SIGINT was inherited as ignored (e.g. `cmd &` in a script).
+    signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
     try:
         node = node_factory()
     except (ValueError, ParameterException) as error:

@@ -11,7 +11,9 @@ Publishes ``/clock`` (rosgraph_msgs/Clock, every ``clock_period_s`` of simulated
 time), ``scan`` (sensor_msgs/LaserScan in ``laser_frame_id``, REP-117: +inf no
 return), ``ground_truth/odom`` (nav_msgs/Odometry of base_link in the simulator's
 ``world_frame_id``; for evaluation only, never for the robot's own software) and
-``simulation/collisions`` (std_msgs/UInt32, the number of collisions so far).
+``simulation/collisions`` (std_msgs/UInt32, transient local: the number of
+collisions so far) and, with ``publish_laser_tf`` (true), ``/tf_static`` base_link ->
+laser as mounted (until the robot description publishes it).
 Leaving the world's authorised test zone is logged as an error.
 The IMU and the wheel encoders reach ROS through the board, as on the robot.
 
@@ -30,6 +32,7 @@ import sys
 import time
 
 from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TransformStamped
 from mecanum_control.board_emulator import BoardLink, PtyPort
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.node_main import run_node
@@ -37,12 +40,14 @@ from mecanum_control.parameters import declare_number, declare_robot_config, pos
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from robot_simulation.sensors import ImuConfig, LidarConfig
 from robot_simulation.simulator import Simulation, SimulatorConfig
 from robot_simulation.world import find_world, load_world
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import UInt32
+from tf2_msgs.msg import TFMessage
 
 
 def stamp(time_s: float) -> Time:
@@ -78,9 +83,11 @@ class SimulatorNode(Node):
         imu = ImuConfig(
             gyro_noise_stddev_rad_s=number('imu_gyro_noise_stddev_rad_s', 0.005),
             accel_noise_stddev_m_s2=number('imu_accel_noise_stddev_m_s2', 0.05))
+        seed = int(declare('seed', 0).value)
+        if seed < 0:
+            raise ValueError(f'parameter seed must be >= 0, got {seed}')
         config = SimulatorConfig(
-            physics_rate_hz=number('physics_rate_hz', 200.0),
-            lidar=lidar, imu=imu, seed=int(declare('seed', 0).value))
+            physics_rate_hz=number('physics_rate_hz', 200.0), lidar=lidar, imu=imu, seed=seed)
         self.laser_frame_id = str(declare('laser_frame_id', 'laser').value)
         self.world_frame_id = str(declare('world_frame_id', 'world').value)
         self.base_frame_id = str(declare('base_frame_id', 'base_link').value)
@@ -91,7 +98,10 @@ class SimulatorNode(Node):
         if board_port:
             self.link = BoardLink(self.sim.board, PtyPort(Path(board_port)),
                                   seed=config.seed + 2)
-            self.link.plug()
+            try:
+                self.link.plug()
+            except OSError as error:
+                raise ValueError(f'cannot create the board port {board_port}: {error}') from None
         self.scan_period_s = 1.0 / lidar.rate_hz
         self.truth_period_s = 1.0 / ground_truth_rate_hz
         self._next = {'clock': 0.0, 'scan': 0.0, 'truth': 0.0}
@@ -101,7 +111,20 @@ class SimulatorNode(Node):
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
-        self.collision_pub = self.create_publisher(UInt32, 'simulation/collisions', 10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.collision_pub = self.create_publisher(UInt32, 'simulation/collisions', latched)
+        self.collision_pub.publish(UInt32(data=0))
+        if bool(declare('publish_laser_tf', True).value):
+            # Until the robot description publishes it: base_link -> laser, as mounted.
+            self.static_tf_pub = self.create_publisher(TFMessage, '/tf_static', latched)
+            mount = TransformStamped()
+            mount.header.frame_id = self.base_frame_id
+            mount.child_frame_id = self.laser_frame_id
+            mount.transform.translation.x = lidar.mount_x_m
+            mount.transform.translation.y = lidar.mount_y_m
+            r = mount.transform.rotation
+            r.x, r.y, r.z, r.w = quaternion_from_yaw(lidar.mount_yaw_rad)
+            self.static_tf_pub.publish(TFMessage(transforms=[mount]))
         x, y, yaw = self.world.robot_start
         where = f'board on {board_port}' if board_port else 'no board link'
         self.get_logger().info(
@@ -148,7 +171,7 @@ class SimulatorNode(Node):
         msg.angle_min = float(config.angle_min_rad)
         msg.angle_increment = float(lidar.angle_increment_rad)
         msg.angle_max = float(lidar.last_beam_angle_rad)
-        msg.time_increment = float(lidar.time_increment_s)
+        msg.time_increment = 0.0  # every beam is cast from the same pose (no sweep skew)
         msg.scan_time = float(lidar.scan_time_s)
         msg.range_min = float(config.range_min_m)
         msg.range_max = float(config.range_max_m)
@@ -173,17 +196,28 @@ class SimulatorNode(Node):
         self.truth_pub.publish(msg)
 
     def run(self) -> None:
-        """Step forever, paced to real_time_factor, serving ROS callbacks in between."""
+        """Step forever, paced to real_time_factor, serving ROS callbacks every 10 ms."""
         executor = rclpy.get_global_executor()
         executor.add_node(self)
-        start = time.monotonic()
+        start = next_spin = time.monotonic()
         while rclpy.ok():
             self.advance()
-            executor.spin_once(timeout_sec=0.0)
+            now = time.monotonic()
+            if now >= next_spin:  # parameter services; spinning every step costs 3x
+                executor.spin_once(timeout_sec=0.0)
+                next_spin = now + 0.01
             if self.real_time_factor > 0.0:
-                wait = start + self.sim.time_s / self.real_time_factor - time.monotonic()
+                wait = start + self.sim.time_s / self.real_time_factor - now
                 if wait > 0.0:
                     time.sleep(wait)
+                elif wait < -0.25:
+                    # Stalled (load, debugger): do not race to catch up, which would
+                    # flood the control stack with /clock; carry on from here.
+                    start = now - self.sim.time_s / self.real_time_factor
+                    self.get_logger().warning(
+                        f'Simulation fell {-wait:.2f} s behind real_time_factor '
+                        f'{self.real_time_factor}; continuing from now',
+                        throttle_duration_sec=10.0)
 
     def close(self) -> None:
         """Unplug the simulated board (removes its link)."""
