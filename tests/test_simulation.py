@@ -12,8 +12,8 @@ import threading
 import time
 
 from geometry_msgs.msg import Twist
-import pytest
 from nav_msgs.msg import Odometry
+import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
