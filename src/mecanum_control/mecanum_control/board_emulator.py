@@ -113,10 +113,12 @@ class BoardLink:
         self.tx_seq: Dict[proto.MessageType, int] = dict.fromkeys(self.periods_s, 0)
         self.rx_bad_frames_reported = 0
         self.due_s: Dict[proto.MessageType, float] = {}
+        self._pending = b''
 
     def plug(self) -> None:
         """Plug the board in: a fresh pty and decoder."""
         self.decoder = proto.FrameDecoder()
+        self._pending = b''
         self.port.plug()
 
     def poll(self, now_s: float) -> None:
@@ -180,10 +182,24 @@ class BoardLink:
         if self.corrupt_rate and self._random.random() < self.corrupt_rate:
             index = self._random.randrange(len(data) - 1)
             data[index] ^= 1 << self._random.randrange(8)
+        if not self._flush_pending():
+            return  # the line is still busy with the rest of an earlier frame: drop this one
         try:
-            os.write(self.port.master, bytes(data))
+            written = os.write(self.port.master, bytes(data))
         except (BlockingIOError, OSError):
-            pass  # nobody reading and the pty buffer is full: the frame is lost, as on a UART
+            return  # nobody reading and the pty buffer is full: the frame is lost, as on a UART
+        if written < len(data):
+            self._pending = bytes(data[written:])  # never leave half a frame on the line
+
+    def _flush_pending(self) -> bool:
+        """Write what is left of a partly written frame; return True when nothing is left."""
+        if self._pending:
+            try:
+                written = os.write(self.port.master, self._pending)
+            except (BlockingIOError, OSError):
+                return False
+            self._pending = self._pending[written:]
+        return not self._pending
 
 
 class BoardEmulator:

@@ -3,10 +3,10 @@
 import math
 import os
 
-from mecanum_control.board_emulator import parse_args, PtyPort
+from mecanum_control.board_emulator import BoardLink, parse_args, PtyPort
 from mecanum_control.board_model import (
     BoardModel, MotorModel, STANDARD_GRAVITY_M_S2, to_int32, Wheel)
-from mecanum_control.esp32_protocol import FaultFlags
+from mecanum_control.esp32_protocol import EncoderTicks, FaultFlags, FrameDecoder
 from mecanum_control.kinematics import MecanumGeometry
 import pytest
 
@@ -440,3 +440,35 @@ def test_emulator_refuses_to_replace_a_real_file_or_device_link(tmp_path):
     finally:
         port.unplug()
     assert not stale.exists() and not stale.is_symlink()
+
+
+def test_board_link_never_leaves_half_a_frame_on_a_full_line(tmp_path):
+    """
+    Nobody reads the pty until its buffer is full: frames are dropped whole, never cut.
+
+    The reader then drains the line; every byte decodes into valid frames.
+    """
+    link_path = tmp_path / 'tty'
+    link = BoardLink(make_board(), PtyPort(link_path))
+    link.plug()
+    try:
+        reader = os.open(link_path, os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            for k in range(3000):  # about 90 kB: far beyond a pty's buffer
+                link.send(EncoderTicks(k, (k, k, k, k)))
+            decoder = FrameDecoder()
+            frames = []
+            for _ in range(3):
+                while True:
+                    try:
+                        chunk = os.read(reader, 65536)
+                    except BlockingIOError:
+                        break
+                    frames += decoder.feed(chunk)
+                link.send(EncoderTicks(9999, (0, 0, 0, 0)))  # flushes any remainder
+        finally:
+            os.close(reader)
+    finally:
+        link.port.unplug()
+    assert decoder.stats.errors == 0
+    assert len(frames) > 100
