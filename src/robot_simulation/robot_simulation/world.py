@@ -601,7 +601,26 @@ class _Parser:
                       moving_obstacles=tuple(moving), robot_start=(x, y, yaw),
                       source=self.path, map_file=map_file)
         self.check_start(world, x, y)
+        self.check_moving_paths(world)
         return world
+
+    def check_moving_paths(self, world: World) -> None:
+        """Check that moving obstacles walk free paths and never cross the robot start."""
+        sx, sy, _ = world.robot_start
+        for index, mover in enumerate(world.moving_obstacles):
+            where = f"moving_obstacles[{index}] '{mover.name}'"
+            points = list(mover.path) + ([mover.path[0]] if mover.loop else [])
+            for (x1, y1), (x2, y2) in zip(points, points[1:]):
+                steps = max(1, int(math.ceil(math.hypot(x2 - x1, y2 - y1) / 0.05)))
+                for k in range(steps + 1):
+                    px, py = x1 + (x2 - x1) * k / steps, y1 + (y2 - y1) * k / steps
+                    if not world.is_free(px, py, clearance_m=mover.radius_m):
+                        blocker, _ = world.nearest_obstacle(px, py)
+                        self.fail(where, f"path runs into '{blocker}' at ({px:.2f}, {py:.2f}) "
+                                  f'(radius {mover.radius_m} m)')
+                    if math.hypot(px - sx, py - sy) < mover.radius_m + START_CLEARANCE_M:
+                        self.fail(where, f'path passes through robot_start at ({px:.2f}, '
+                                  f'{py:.2f})')
 
     def entries(self, raw: Dict[str, Any], key: str) -> List[Any]:
         """Return the list under `key` (empty if absent or null)."""

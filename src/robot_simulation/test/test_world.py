@@ -2,6 +2,7 @@
 
 import copy
 import math
+import textwrap
 
 from mecanum_navigation.map_io import OccupancyMap, save_map
 import numpy as np
@@ -551,3 +552,23 @@ def test_missing_world_file(tmp_path):
     """A missing world file raises WorldError, not OSError."""
     with pytest.raises(WorldError, match='no such world file'):
         load_world(tmp_path / 'absent.yaml')
+
+
+@pytest.mark.parametrize('path, message', [
+    ('[[0.5, 2.5], [3.5, 2.5]]', "path runs into 'sofa' at"),
+    ('[[0.5, 0.6], [3.5, 0.6]]', 'path passes through robot_start'),
+])
+def test_moving_obstacle_paths_must_be_free(tmp_path, path, message):
+    """A person walking through furniture or through the robot's start is refused."""
+    world = tmp_path / 'walk.yaml'
+    world.write_text(textwrap.dedent(f"""
+        world:
+          bounds_m: [0.0, 0.0, 4.0, 4.0]
+          furniture:
+          - {{name: sofa, box: {{center: [2.0, 2.5], size: [1.0, 0.5]}}}}
+          moving_obstacles:
+          - {{name: person, radius_m: 0.25, speed_m_s: 0.8, path: {path}, loop: false}}
+          robot_start: {{x_m: 2.0, y_m: 0.6}}
+        """))
+    with pytest.raises(WorldError, match=message):
+        load_world(world)
