@@ -67,8 +67,40 @@ class Wheel:
         self.angle_rad += target * dt_s + (start - target) * motor.time_constant_s * (1 - decay)
 
 
+class FirmwareCommandRule:
+    """
+    The firmware's handling of effort commands, shared by every emulated board.
+
+    The host's efforts hold until ``command_timeout_ms`` passes without a new command;
+    then, and from boot until the first command, every duty is zero and
+    COMMAND_TIMEOUT is set (doc/esp32_protocol.md, 4.1). Subclasses provide the
+    attributes ``time_us``, ``efforts``, ``command_timeout_ms``, ``last_command_us``,
+    ``last_command_seq`` and ``faults``.
+    """
+
+    def command(self, efforts: Sequence[float], command_timeout_ms: int, seq: int) -> None:
+        """Apply the host's effort command: duty -1..1 per wheel, its timeout and sequence."""
+        self.efforts = [max(-1.0, min(1.0, float(e))) for e in efforts]
+        self.command_timeout_ms = command_timeout_ms
+        self.last_command_us = self.time_us
+        self.last_command_seq = seq
+        self.faults &= ~FaultFlags.COMMAND_TIMEOUT
+
+    def clear_faults(self, faults: FaultFlags) -> None:
+        """Clear latched fault bits the host asked to clear."""
+        self.faults &= ~faults
+
+    def apply_command_timeout(self) -> List[float]:
+        """Zero the duties once the command timed out (or none came yet); return them."""
+        if (self.last_command_us is None
+                or self.time_us - self.last_command_us > self.command_timeout_ms * 1000):
+            self.faults |= FaultFlags.COMMAND_TIMEOUT
+            self.efforts = [0.0] * 4
+        return self.efforts
+
+
 @dataclass
-class BoardModel:
+class BoardModel(FirmwareCommandRule):
     """The emulated board: four wheels, encoder counters, an IMU and the command timeout."""
 
     geometry: MecanumGeometry
@@ -91,29 +123,12 @@ class BoardModel:
         self._body_velocity = (0.0, 0.0, 0.0)
         self._body_accel = (0.0, 0.0)
 
-    def command(self, efforts: Sequence[float], command_timeout_ms: int, seq: int) -> None:
-        """Apply the host's effort command: duty -1..1 per wheel, its timeout and sequence."""
-        self.efforts = [max(-1.0, min(1.0, float(e))) for e in efforts]
-        self.command_timeout_ms = command_timeout_ms
-        self.last_command_us = self.time_us
-        self.last_command_seq = seq
-        self.faults &= ~FaultFlags.COMMAND_TIMEOUT
-
-    def clear_faults(self, faults: FaultFlags) -> None:
-        """Clear latched fault bits the host asked to clear."""
-        self.faults &= ~faults
-
     def step(self, dt_s: float) -> None:
         """Advance time by dt_s: command timeout, motor response, body acceleration."""
         if dt_s <= 0:
             return
         self.time_us += int(round(dt_s * 1e6))
-        if (self.last_command_us is None
-                or self.time_us - self.last_command_us > self.command_timeout_ms * 1000):
-            # Also from boot until the first command (doc/esp32_protocol.md, 4.1).
-            self.faults |= FaultFlags.COMMAND_TIMEOUT
-            self.efforts = [0.0] * 4
-        for wheel, effort in zip(self.wheels, self.efforts):
+        for wheel, effort in zip(self.wheels, self.apply_command_timeout()):
             wheel.step(self.motor, effort, dt_s)
         velocity = forward_kinematics(self.geometry, [w.speed_rad_s for w in self.wheels])
         self._body_accel = ((velocity[0] - self._body_velocity[0]) / dt_s,

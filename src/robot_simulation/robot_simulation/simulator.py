@@ -14,21 +14,15 @@ Units: SI, REP-103; world frame x east, y north; wheel order FL, FR, RL, RR.
 
 from dataclasses import dataclass, field
 import math
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Tuple
 
+from mecanum_control.board_model import FirmwareCommandRule, to_int32
 from mecanum_control.esp32_protocol import FaultFlags
 from mecanum_control.robot_config import RobotConfig
 import numpy as np
 from robot_simulation.physics import MecanumPhysics, PhysicsParams
 from robot_simulation.sensors import ImuConfig, ImuModel, Lidar, LidarConfig
 from robot_simulation.world import World
-
-INT32_RANGE = 1 << 32
-
-
-def to_int32(value: int) -> int:
-    """Wrap an integer into the signed 32-bit range of a hardware counter."""
-    return (value + (1 << 31)) % INT32_RANGE - (1 << 31)
 
 
 @dataclass(frozen=True)
@@ -45,7 +39,7 @@ class SimulatorConfig:
             raise ValueError(f'physics_rate_hz must be >= 50, got {self.physics_rate_hz}')
 
 
-class SimulatedBoard:
+class SimulatedBoard(FirmwareCommandRule):
     """
     The ESP32 firmware's view of the simulated robot (BoardModel's interface).
 
@@ -63,33 +57,11 @@ class SimulatedBoard:
         self.last_command_us: Optional[int] = None
         self.last_command_seq = 0
         self.faults = FaultFlags.COMMAND_TIMEOUT
-        self.commands_received = 0
 
     @property
     def time_us(self) -> int:
         """Return the board clock: simulated time in microseconds."""
         return int(round(self._sim.time_s * 1e6))
-
-    def command(self, efforts: Sequence[float], command_timeout_ms: int, seq: int) -> None:
-        """Apply the host's effort command: duty -1..1 per wheel, its timeout and sequence."""
-        self.efforts = [max(-1.0, min(1.0, float(e))) for e in efforts]
-        self.command_timeout_ms = command_timeout_ms
-        self.last_command_us = self.time_us
-        self.last_command_seq = seq
-        self.commands_received += 1
-        self.faults &= ~FaultFlags.COMMAND_TIMEOUT
-
-    def clear_faults(self, faults: FaultFlags) -> None:
-        """Clear latched fault bits."""
-        self.faults &= ~faults
-
-    def duties(self) -> List[float]:
-        """Duties to apply now: zero after the command timeout (the firmware's rule)."""
-        if (self.last_command_us is None
-                or self.time_us - self.last_command_us > self.command_timeout_ms * 1000):
-            self.faults |= FaultFlags.COMMAND_TIMEOUT
-            self.efforts = [0.0] * 4
-        return self.efforts
 
     @property
     def ticks(self) -> Tuple[int, int, int, int]:
@@ -132,7 +104,7 @@ class Simulation:
 
     def step(self) -> None:
         """Advance one physics step with the board's current duties."""
-        self.physics.step(self.board.duties(), self.dt_s, self.all_circles())
+        self.physics.step(self.board.apply_command_timeout(), self.dt_s, self.all_circles())
         self.steps += 1
         self.time_s = self.steps * self.dt_s
         state = self.physics.state

@@ -4,12 +4,13 @@ import math
 from pathlib import Path
 import textwrap
 
+from mecanum_control.board_model import to_int32
 from mecanum_control.esp32_protocol import FaultFlags
 from mecanum_control.robot_config import default_config_path, load_robot_config
 import numpy as np
 import pytest
 from robot_simulation.sensors import ImuConfig, LidarConfig
-from robot_simulation.simulator import Simulation, SimulatorConfig, to_int32
+from robot_simulation.simulator import Simulation, SimulatorConfig
 from robot_simulation.world import find_world, load_world
 
 ROBOT = load_robot_config(default_config_path())
