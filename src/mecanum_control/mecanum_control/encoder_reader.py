@@ -17,8 +17,7 @@ odom -> base_link), ``velocity_window_s`` (0.06), ``pose_covariance_diagonal`` a
 
 import sys
 
-from geometry_msgs.msg import TransformStamped
-from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.messages import odometry_transform, planar_odometry
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import covariance_from_diagonal, declare_robot_config
 from mecanum_control.wheel_odometry import EncoderSample, WheelOdometry
@@ -79,34 +78,11 @@ class EncoderReader(Node):
         joints.velocity = [float(v) for v in odometry.wheel_velocities_rad_s]
         self.joint_pub.publish(joints)
 
-        x, y, yaw = odometry.pose
-        vx, vy, wz = odometry.twist
-        qx, qy, qz, qw = quaternion_from_yaw(yaw)
-        odom = Odometry()
-        odom.header.stamp = stamp
-        odom.header.frame_id = self.odom_frame_id
-        odom.child_frame_id = self.base_frame_id
-        odom.pose.pose.position.x = x
-        odom.pose.pose.position.y = y
-        odom.pose.pose.orientation.x = qx
-        odom.pose.pose.orientation.y = qy
-        odom.pose.pose.orientation.z = qz
-        odom.pose.pose.orientation.w = qw
-        odom.pose.covariance = self.pose_covariance
-        odom.twist.twist.linear.x = float(vx)
-        odom.twist.twist.linear.y = float(vy)
-        odom.twist.twist.angular.z = float(wz)
-        odom.twist.covariance = self.twist_covariance
+        odom = planar_odometry(stamp, self.odom_frame_id, self.base_frame_id, odometry.pose,
+                               odometry.twist, self.pose_covariance, self.twist_covariance)
         self.odom_pub.publish(odom)
-
         if self.tf_pub is not None:
-            transform = TransformStamped()
-            transform.header = odom.header
-            transform.child_frame_id = self.base_frame_id
-            transform.transform.translation.x = x
-            transform.transform.translation.y = y
-            transform.transform.rotation = odom.pose.pose.orientation
-            self.tf_pub.publish(TFMessage(transforms=[transform]))
+            self.tf_pub.publish(TFMessage(transforms=[odometry_transform(odom)]))
 
 
 def main(args=None) -> int:

@@ -25,22 +25,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.command_limits import (
     AxisLimits, CommandRejected, MotorCommandCore, TwistLimits)
+from mecanum_control.messages import wheel_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float32MultiArray, MultiArrayDimension
+from std_msgs.msg import Bool, Float32MultiArray
 from std_srvs.srv import Trigger
 
 STATUS_LEVELS = {'ok': DiagnosticStatus.OK, 'waiting': DiagnosticStatus.OK,
                  'timeout': DiagnosticStatus.WARN, 'estop': DiagnosticStatus.ERROR}
-
-
-def wheel_array(values) -> Float32MultiArray:
-    """Float32MultiArray of four wheel values, FL FR RL RR."""
-    msg = Float32MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label='wheel', size=4, stride=4)]
-    msg.data = [float(v) for v in values]
-    return msg
 
 
 class MotorController(Node):

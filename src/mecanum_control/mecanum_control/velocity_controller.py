@@ -24,7 +24,7 @@ import sys
 from typing import List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mecanum_control.motor_controller import wheel_array
+from mecanum_control.messages import wheel_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains, StallConfig,

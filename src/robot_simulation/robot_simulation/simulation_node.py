@@ -11,8 +11,8 @@ Parameters: ``update_rate_hz`` (50.0), ``status_rate_hz`` (10.0),
 The model (:mod:`robot_simulation.kinematic_model`) has no dynamics or slip.
 """
 
-from geometry_msgs.msg import TransformStamped, Twist
-from mecanum_control.kinematics import quaternion_from_yaw
+from geometry_msgs.msg import Twist
+from mecanum_control.messages import odometry_transform, planar_odometry
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -66,32 +66,11 @@ class RobotSimulation(Node):
         dt_s = 0.0 if self.last_step is None else (now - self.last_step).nanoseconds * 1e-9
         self.last_step = now
         pose = self.model.step(now.nanoseconds * 1e-9, dt_s)
-        vx, vy, wz = self.model.twist
-        qx, qy, qz, qw = quaternion_from_yaw(pose.yaw)
-
-        odom = Odometry()
-        odom.header.stamp = now.to_msg()
-        odom.header.frame_id = self.odom_frame_id
-        odom.child_frame_id = self.base_frame_id
-        odom.pose.pose.position.x = pose.x
-        odom.pose.pose.position.y = pose.y
-        odom.pose.pose.orientation.x = qx
-        odom.pose.pose.orientation.y = qy
-        odom.pose.pose.orientation.z = qz
-        odom.pose.pose.orientation.w = qw
-        odom.twist.twist.linear.x = vx
-        odom.twist.twist.linear.y = vy
-        odom.twist.twist.angular.z = wz
+        odom = planar_odometry(now.to_msg(), self.odom_frame_id, self.base_frame_id,
+                               (pose.x, pose.y, pose.yaw), self.model.twist)
         self.odom_pub.publish(odom)
-
         if self.tf_pub is not None:
-            transform = TransformStamped()
-            transform.header = odom.header
-            transform.child_frame_id = self.base_frame_id
-            transform.transform.translation.x = pose.x
-            transform.transform.translation.y = pose.y
-            transform.transform.rotation = odom.pose.pose.orientation
-            self.tf_pub.publish(TFMessage(transforms=[transform]))
+            self.tf_pub.publish(TFMessage(transforms=[odometry_transform(odom)]))
 
     def on_status(self) -> None:
         """Publish the seed's human-readable position line."""

@@ -35,6 +35,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from mecanum_control.board_emulator import BoardLink, PtyPort
 from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.messages import planar_odometry
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, declare_robot_config, positive
 from nav_msgs.msg import Odometry
@@ -181,18 +182,8 @@ class SimulatorNode(Node):
     def publish_ground_truth(self, now: float) -> None:
         """Publish the true pose and body twist (evaluation only)."""
         state = self.sim.physics.state
-        msg = Odometry()
-        msg.header.stamp = stamp(now)
-        msg.header.frame_id = self.world_frame_id
-        msg.child_frame_id = self.base_frame_id
-        msg.pose.pose.position.x = state.x
-        msg.pose.pose.position.y = state.y
-        qx, qy, qz, qw = quaternion_from_yaw(state.yaw)
-        q = msg.pose.pose.orientation
-        q.x, q.y, q.z, q.w = qx, qy, qz, qw
-        msg.twist.twist.linear.x = state.vx
-        msg.twist.twist.linear.y = state.vy
-        msg.twist.twist.angular.z = state.wz
+        msg = planar_odometry(stamp(now), self.world_frame_id, self.base_frame_id,
+                              (state.x, state.y, state.yaw), (state.vx, state.vy, state.wz))
         self.truth_pub.publish(msg)
 
     def run(self) -> None:
