@@ -219,12 +219,10 @@ class HardwareInterface(Node):
             self._disconnect_reason = str(error)
             return
         with self._lock:
-            self._add_totals()
+            self._add_totals()  # and a fresh decoder and trackers for this connection
             self._serial = port
             self._connected_at = self._now()
             self._frames_this_connection = 0
-            self._decoder = proto.FrameDecoder()
-            self._trackers = {}
             self._last_board_time_us = None
         log = self.get_logger().debug if self._quiet else self.get_logger().info
         log(f'Connected to the board at {self.port}')
@@ -241,7 +239,7 @@ class HardwareInterface(Node):
             self._lose_link(port, f'no valid frame from the board for {silent_s:.2f} s')
 
     def _add_totals(self) -> None:
-        """Fold the current connection's counters into the totals (call with _lock held)."""
+        """Fold the connection's counters into the totals and start fresh (_lock held)."""
         self._totals['frames_ok'] += self._decoder.stats.frames_ok
         self._totals['frame_errors'] += self._decoder.stats.errors
         self._totals['frames_lost'] += sum(t.lost for t in self._trackers.values())
