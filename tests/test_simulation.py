@@ -12,6 +12,7 @@ import threading
 import time
 
 from geometry_msgs.msg import Twist
+from mecanum_control.robot_config import default_config_path, load_robot_config
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -22,8 +23,9 @@ from tf2_msgs.msg import TFMessage
 pytestmark = pytest.mark.integration
 
 #: apartment.yaml: robot_start (2.95, 2.0) faces +x; the living room's east wall's
-#: inner face is at x = 5.95, exactly 3.0 m ahead of the lidar (mounted at the centre).
-WALL_AHEAD_M = 3.0
+#: inner face is at x = 5.95, 3.0 m ahead of base_link, so 3.0 m less the lidar's
+#: forward mount offset (motor_params.yaml) ahead of the lidar.
+WALL_AHEAD_M = 3.0 - load_robot_config(default_config_path()).lidar_mount_x_m
 
 
 @pytest.fixture

@@ -15,7 +15,8 @@ from typing import Any, Mapping, Tuple
 from mecanum_control.kinematics import MecanumGeometry
 import yaml
 
-#: Parameter name -> expected kind ('float', 'int', 'names').
+#: Parameter name -> expected kind: 'float' and 'int' (finite, > 0), 'offset' (any
+#: finite number: a mount position in m or yaw in rad), 'names' (4 joint names).
 PARAMETER_KINDS = {
     'wheel_radius_m': 'float',
     'half_wheelbase_m': 'float',
@@ -25,6 +26,15 @@ PARAMETER_KINDS = {
     'robot_yaw_inertia_kg_m2': 'float',
     'footprint_radius_m': 'float',
     'wheel_friction_coefficient': 'float',
+    'chassis_length_m': 'float',
+    'chassis_width_m': 'float',
+    'chassis_height_m': 'float',
+    'wheel_width_m': 'float',
+    'lidar_mount_x_m': 'offset',
+    'lidar_mount_y_m': 'offset',
+    'lidar_mount_z_m': 'offset',
+    'lidar_mount_yaw_rad': 'offset',
+    'imu_mount_z_m': 'offset',
     'encoder_counts_per_motor_rev': 'int',
     'gear_ratio': 'float',
     'motor_no_load_speed_rad_s': 'float',
@@ -54,6 +64,15 @@ class RobotConfig:
     robot_yaw_inertia_kg_m2: float
     footprint_radius_m: float
     wheel_friction_coefficient: float
+    chassis_length_m: float
+    chassis_width_m: float
+    chassis_height_m: float
+    wheel_width_m: float
+    lidar_mount_x_m: float
+    lidar_mount_y_m: float
+    lidar_mount_z_m: float
+    lidar_mount_yaw_rad: float
+    imu_mount_z_m: float
     encoder_counts_per_motor_rev: int
     gear_ratio: float
     motor_no_load_speed_rad_s: float
@@ -97,6 +116,10 @@ def _check(name: str, kind: str, value: Any) -> Any:
         value = int(value)
     else:
         value = float(value)
+    if kind == 'offset':
+        if not math.isfinite(value):
+            raise RobotConfigError(f'robot parameter {name} must be finite, got {value!r}')
+        return value
     if not (math.isfinite(value) and value > 0):
         raise RobotConfigError(f'robot parameter {name} must be finite and > 0, got {value!r}')
     return value
@@ -109,6 +132,9 @@ def robot_config_from_parameters(values: Mapping[str, Any]) -> RobotConfig:
     geometry = MecanumGeometry(checked.pop('wheel_radius_m'), checked.pop('half_wheelbase_m'),
                                checked.pop('half_track_m'))
     config = RobotConfig(geometry=geometry, **checked)
+    if abs(config.lidar_mount_yaw_rad) > math.pi:
+        raise RobotConfigError('robot parameter lidar_mount_yaw_rad must be within [-pi, pi], '
+                               f'got {config.lidar_mount_yaw_rad}')
     if config.board_command_timeout_ms > 65535:
         raise RobotConfigError('robot parameter board_command_timeout_ms must fit 16 bits '
                                f'(<= 65535), got {config.board_command_timeout_ms}')

@@ -10,7 +10,9 @@ import pytest
 
 MOTOR_PARAMS = Path(__file__).resolve().parents[1] / 'config' / 'motor_params.yaml'
 
-NUMERIC_PARAMETERS = sorted(name for name, kind in PARAMETER_KINDS.items() if kind != 'names')
+NUMERIC_PARAMETERS = sorted(name for name, kind in PARAMETER_KINDS.items()
+                            if kind in ('float', 'int'))
+OFFSET_PARAMETERS = sorted(name for name, kind in PARAMETER_KINDS.items() if kind == 'offset')
 
 # Bad values for every numeric parameter, and why they are bad.
 BAD_NUMBERS = [
@@ -43,6 +45,15 @@ def valid_parameters():
         'robot_yaw_inertia_kg_m2': 0.08,
         'footprint_radius_m': 0.25,
         'wheel_friction_coefficient': 0.5,
+        'chassis_length_m': 0.35,
+        'chassis_width_m': 0.2,
+        'chassis_height_m': 0.07,
+        'wheel_width_m': 0.04,
+        'lidar_mount_x_m': -0.02,
+        'lidar_mount_y_m': 0.01,
+        'lidar_mount_z_m': 0.15,
+        'lidar_mount_yaw_rad': math.pi,
+        'imu_mount_z_m': 0.0,
         'encoder_counts_per_motor_rev': 64,
         'gear_ratio': 50.0,
         'motor_no_load_speed_rad_s': 30.0,
@@ -142,6 +153,32 @@ def test_bad_numbers_are_rejected(name, value):
     """Non-positive, non-finite, boolean and non-numeric values are rejected by name."""
     with pytest.raises(RobotConfigError, match=name):
         robot_config_from_parameters(with_value(name, value))
+
+
+@pytest.mark.parametrize('value', [
+    pytest.param(float('nan'), id='nan'), pytest.param(float('inf'), id='inf'),
+    pytest.param(True, id='bool'), pytest.param('0.1', id='string'),
+    pytest.param(None, id='none')])
+@pytest.mark.parametrize('name', OFFSET_PARAMETERS)
+def test_bad_offsets_are_rejected(name, value):
+    """Mount offsets may be zero or negative but must be finite numbers."""
+    with pytest.raises(RobotConfigError, match=name):
+        robot_config_from_parameters(with_value(name, value))
+
+
+@pytest.mark.parametrize('name', OFFSET_PARAMETERS)
+def test_offsets_may_be_zero_or_negative(name):
+    """A sensor behind, right of or below base_link's origin is valid."""
+    for value in (0, 0.0, -0.1):
+        config = robot_config_from_parameters(with_value(name, value))
+        assert getattr(config, name) == value
+
+
+@pytest.mark.parametrize('value', [3.2, -3.2])
+def test_lidar_yaw_must_be_within_pi(value):
+    """A mount yaw beyond +-pi is a typo (degrees?) and is rejected."""
+    with pytest.raises(RobotConfigError, match='lidar_mount_yaw_rad'):
+        robot_config_from_parameters(with_value('lidar_mount_yaw_rad', value))
 
 
 @pytest.mark.parametrize('value', [44.5, 0.5, 1e-9])

@@ -23,7 +23,8 @@ Parameters: ``world`` (name of an installed world or a path; 'apartment'), ``see
 ``lidar_beams`` (360), ``lidar_range_max_m`` (12.0), ``lidar_rate_hz`` (10.0),
 ``lidar_noise_stddev_m`` (0.01), IMU ``imu_gyro_noise_stddev_rad_s`` (0.005),
 ``imu_accel_noise_stddev_m_s2`` (0.05), and the robot parameters of
-motor_params.yaml. The simulator never uses sim time itself (it makes it).
+motor_params.yaml (including the lidar's mount pose). The simulator never uses sim
+time itself (it makes it).
 """
 
 import math
@@ -80,7 +81,9 @@ class SimulatorNode(Node):
             beams=int(declare('lidar_beams', 360).value),
             range_max_m=number('lidar_range_max_m', 12.0),
             rate_hz=number('lidar_rate_hz', 10.0),
-            noise_stddev_m=number('lidar_noise_stddev_m', 0.01))
+            noise_stddev_m=number('lidar_noise_stddev_m', 0.01),
+            mount_x_m=robot.lidar_mount_x_m, mount_y_m=robot.lidar_mount_y_m,
+            mount_yaw_rad=robot.lidar_mount_yaw_rad)
         imu = ImuConfig(
             gyro_noise_stddev_rad_s=number('imu_gyro_noise_stddev_rad_s', 0.005),
             accel_noise_stddev_m_s2=number('imu_accel_noise_stddev_m_s2', 0.05))
@@ -123,6 +126,7 @@ class SimulatorNode(Node):
             mount.child_frame_id = self.laser_frame_id
             mount.transform.translation.x = lidar.mount_x_m
             mount.transform.translation.y = lidar.mount_y_m
+            mount.transform.translation.z = robot.lidar_mount_z_m
             r = mount.transform.rotation
             r.x, r.y, r.z, r.w = quaternion_from_yaw(lidar.mount_yaw_rad)
             self.static_tf_pub.publish(TFMessage(transforms=[mount]))
