@@ -19,6 +19,7 @@ Usage: ``python3 tools/bootstrap.py [--force]``.
 """
 
 import argparse
+import fcntl
 import glob
 import hashlib
 import os
@@ -278,10 +279,14 @@ def main() -> None:
     parser.add_argument('--force', action='store_true', help='rebuild the workspace')
     args = parser.parse_args()
     check_python()
-    ensure_venv()
-    ensure_requirements()
-    ensure_overlay()
-    ensure_workspace(args.force)
+    # One setup at a time (two terminals, or tests, running `make` at once): the second
+    # waits, then finds the work done.
+    with open(ROOT / '.bootstrap.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        ensure_venv()
+        ensure_requirements()
+        ensure_overlay()
+        ensure_workspace(args.force)
 
 
 if __name__ == '__main__':
