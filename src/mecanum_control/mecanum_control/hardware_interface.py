@@ -5,7 +5,10 @@ Subscribes ``motor_efforts`` (std_msgs/Float32MultiArray, PWM duty -1..1, FL FR 
 and sends them to the board at once, and again at ``command_rate_hz`` as keep-alive.
 Publishes what the board reports: ``wheel_ticks`` (mecanum_interfaces/WheelTicks),
 ``imu/data_raw`` (sensor_msgs/Imu: angular velocity and linear acceleration with
-covariances from the ``imu_*_stddev_*`` parameters, no orientation) and
+covariances from the ``imu_*_stddev_*`` parameters, no orientation; with
+``imu_rest_calibration`` the gyro bias, and the accelerometer's x/y bias on a level
+floor, are measured whenever the robot rests for ``imu_rest_time_s`` and removed; see
+mecanum_control.imu_calibration) and
 ``/diagnostics`` (link state, board faults, frame statistics). Service
 ``~/clear_board_faults`` (std_srvs/Trigger) asks the board to clear latched faults.
 
@@ -28,6 +31,7 @@ from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mecanum_control import esp32_protocol as proto
+from mecanum_control.imu_calibration import ImuRestCalibrator
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.wheel_odometry import wrapped_delta
@@ -67,6 +71,10 @@ class HardwareInterface(Node):
             'imu_angular_velocity_stddev_rad_s', 0.005).value)
         accel_stddev = positive('imu_linear_acceleration_stddev_m_s2', self.declare_parameter(
             'imu_linear_acceleration_stddev_m_s2', 0.05).value)
+        self.imu_calibrator = None
+        if self.declare_parameter('imu_rest_calibration', True).value:
+            self.imu_calibrator = ImuRestCalibrator(rest_time_s=positive(
+                'imu_rest_time_s', self.declare_parameter('imu_rest_time_s', 1.0).value))
         self.gyro_covariance = [gyro_stddev ** 2, 0.0, 0.0, 0.0, gyro_stddev ** 2, 0.0,
                                 0.0, 0.0, gyro_stddev ** 2]
         self.accel_covariance = [accel_stddev ** 2, 0.0, 0.0, 0.0, accel_stddev ** 2, 0.0,
@@ -164,6 +172,12 @@ class HardwareInterface(Node):
                             if response.success else f'not connected to {self.port}')
         self.get_logger().info(f'Clear board faults: {response.message}')
         return response
+
+    def _driven(self) -> bool:
+        """Tell whether a non-zero effort is being sent to the board."""
+        with self._lock:
+            fresh = self._now() - self._efforts_at <= self.effort_timeout_s
+            return fresh and any(e != 0.0 for e in self._efforts)
 
     def _send_efforts(self) -> None:
         now = self._now()
@@ -348,6 +362,8 @@ class HardwareInterface(Node):
             msg.board_time_us = message.board_time_us
             msg.ticks = [int(t) for t in message.ticks]
             self.ticks_pub.publish(msg)
+            if self.imu_calibrator is not None:
+                self.imu_calibrator.on_ticks(message.ticks, self._driven(), self._now())
         elif isinstance(message, proto.ImuSample):
             msg = Imu()
             msg.header.stamp = stamp
@@ -355,10 +371,19 @@ class HardwareInterface(Node):
             msg.orientation_covariance[0] = -1.0  # no orientation estimate
             msg.angular_velocity_covariance = self.gyro_covariance
             msg.linear_acceleration_covariance = self.accel_covariance
+            accel, gyro = message.accel_m_s2, message.gyro_rad_s
+            if self.imu_calibrator is not None:
+                calibrations = self.imu_calibrator.calibrations
+                accel, gyro = self.imu_calibrator.on_sample(accel, gyro, self._now())
+                if self.imu_calibrator.calibrations == 1 and calibrations == 0:
+                    bias = self.imu_calibrator.gyro_bias
+                    self.get_logger().info(
+                        'IMU calibrated at rest: gyro bias '
+                        f'({bias[0]:.5f}, {bias[1]:.5f}, {bias[2]:.5f}) rad/s')
             (msg.linear_acceleration.x, msg.linear_acceleration.y,
-             msg.linear_acceleration.z) = (float(a) for a in message.accel_m_s2)
+             msg.linear_acceleration.z) = (float(a) for a in accel)
             (msg.angular_velocity.x, msg.angular_velocity.y,
-             msg.angular_velocity.z) = (float(g) for g in message.gyro_rad_s)
+             msg.angular_velocity.z) = (float(g) for g in gyro)
             self.imu_pub.publish(msg)
         else:
             self._board_status = message
