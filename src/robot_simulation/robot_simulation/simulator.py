@@ -33,10 +33,19 @@ class SimulatorConfig:
     lidar: LidarConfig = field(default_factory=LidarConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
     seed: int = 0
+    #: Tyre-floor friction coefficient of this floor; 0 keeps the robot's
+    #: wheel_friction_coefficient. A low value (0.1: polished tiles) makes the wheels
+    #: slip when the robot accelerates harder than about mu * g.
+    floor_friction_coefficient: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.physics_rate_hz) and self.physics_rate_hz >= 50.0):
             raise ValueError(f'physics_rate_hz must be >= 50, got {self.physics_rate_hz}')
+        if not (math.isfinite(self.floor_friction_coefficient)
+                and self.floor_friction_coefficient >= 0.0):
+            raise ValueError('floor_friction_coefficient must be >= 0 (0: the robot '
+                             'wheel_friction_coefficient), got '
+                             f'{self.floor_friction_coefficient}')
 
 
 class SimulatedBoard(FirmwareCommandRule):
@@ -86,8 +95,11 @@ class Simulation:
         self.time_s = 0.0
         self.steps = 0
         x, y, yaw = world.robot_start
-        self.physics = MecanumPhysics(PhysicsParams.from_robot_config(robot), world.segments,
-                                      x=x, y=y, yaw=yaw)
+        overrides = {}
+        if config.floor_friction_coefficient > 0.0:
+            overrides['friction_coefficient'] = config.floor_friction_coefficient
+        self.physics = MecanumPhysics(PhysicsParams.from_robot_config(robot, **overrides),
+                                      world.segments, x=x, y=y, yaw=yaw)
         self.lidar = Lidar(config.lidar, world.segments, seed=config.seed)
         self.imu_model = ImuModel(config.imu, seed=config.seed + 1)
         self.board = SimulatedBoard(self, robot.rad_per_count, robot.board_command_timeout_ms)

@@ -22,9 +22,10 @@ Parameters: ``world`` (name of an installed world or a path; 'apartment'), ``see
 (200), ``clock_period_s`` (0.005), ``ground_truth_rate_hz`` (50), lidar
 ``lidar_beams`` (360), ``lidar_range_max_m`` (12.0), ``lidar_rate_hz`` (10.0),
 ``lidar_noise_stddev_m`` (0.01), IMU ``imu_gyro_noise_stddev_rad_s`` (0.005),
-``imu_accel_noise_stddev_m_s2`` (0.05), and the robot parameters of
-motor_params.yaml (including the lidar's mount pose). The simulator never uses sim
-time itself (it makes it).
+``imu_accel_noise_stddev_m_s2`` (0.05), ``floor_friction_coefficient`` (0: the
+robot's wheel_friction_coefficient; lower makes the wheels slip), and the robot
+parameters of motor_params.yaml (including the lidar's mount pose). The simulator
+never uses sim time itself (it makes it).
 """
 
 import math
@@ -91,7 +92,8 @@ class SimulatorNode(Node):
         if seed < 0:
             raise ValueError(f'parameter seed must be >= 0, got {seed}')
         config = SimulatorConfig(
-            physics_rate_hz=number('physics_rate_hz', 200.0), lidar=lidar, imu=imu, seed=seed)
+            physics_rate_hz=number('physics_rate_hz', 200.0), lidar=lidar, imu=imu, seed=seed,
+            floor_friction_coefficient=number('floor_friction_coefficient', 0.0))
         self.laser_frame_id = str(declare('laser_frame_id', 'laser').value)
         self.world_frame_id = str(declare('world_frame_id', 'world').value)
         self.base_frame_id = str(declare('base_frame_id', 'base_link').value)

@@ -129,3 +129,23 @@ def test_leaving_the_test_zone_is_counted(tmp_path):
     drive(sim, [0.4] * 4, 4.0)
     assert not sim.in_test_zone
     assert sim.left_test_zone_count == 1
+
+
+def test_a_slippery_floor_limits_acceleration_to_its_friction(tmp_path):
+    """Full duty on a mu = 0.1 floor: (mu - C_rr) g acceleration, the wheels spin ahead."""
+    config = SimulatorConfig(imu=quiet_config().imu, floor_friction_coefficient=0.1)
+    sim = Simulation(load_world(box_world(tmp_path)), ROBOT, config)
+    drive(sim, [1.0] * 4, 0.2)
+    # Traction mu m g against rolling resistance 0.01 m g: 0.09 * 9.80665 * 0.2 s.
+    assert sim.physics.state.vx == pytest.approx(0.09 * 9.80665 * 0.2, rel=0.02)
+    rim_speed = ROBOT.geometry.wheel_radius_m * np.mean(sim.physics.state.wheel_speeds_rad_s)
+    assert rim_speed > 2.0 * sim.physics.state.vx  # roller slip: odometry would overshoot
+    grippy = Simulation(load_world(box_world(tmp_path)), ROBOT, quiet_config())
+    drive(grippy, [1.0] * 4, 0.2)
+    assert grippy.physics.state.vx > 2.0 * sim.physics.state.vx
+
+
+def test_floor_friction_must_be_a_non_negative_number():
+    for value in (-0.1, math.nan, math.inf):
+        with pytest.raises(ValueError, match='floor_friction_coefficient'):
+            SimulatorConfig(floor_friction_coefficient=value)
