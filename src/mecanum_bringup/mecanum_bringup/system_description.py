@@ -35,7 +35,15 @@ names the file and the entry, never silently ignored)::
         env: [{name: FOO, value: bar}]    # optional
 
 Substitutions: ``$(var NAME)``, ``$(find-pkg-share PKG)``,
-``$(env NAME [DEFAULT])``, ``$(dirname)`` (the launch file's folder).
+``$(env NAME [DEFAULT])``, ``$(dirname)`` (the launch file's folder) and
+``$(command 'CMD ARGS' [ON_STDERR])``: CMD's standard output. As in ROS 2 launch,
+the command is split like a shell would (shlex) but run without one, in the
+launch environment; it fails on a non-zero exit and, with ON_STDERR ``fail`` (the
+default), on any standard error output (``ignore``: drop it, ``warn``: print it,
+``capture``: append it to the result). Arguments are separated by spaces and may be
+quoted ('...' or "..."; in quotes a backslash escapes the quote, a backslash or
+``$``) and hold nested substitutions, e.g.
+``$(command 'xacro $(find-pkg-share mecanum_description)/urdf/robot.urdf.xacro')``.
 This module does not import rclpy or launch.
 """
 
@@ -44,11 +52,15 @@ import os
 from pathlib import Path
 import re
 import shlex
-from typing import Callable, Dict, List, Optional, Tuple
+import subprocess
+import sys
+from typing import Callable, Dict, List, Optional, Tuple, Union
 
 import yaml
 
-_SUBSTITUTION = re.compile(r'\$\(([a-z-]+)((?:\s+[^()\s]+)*)\s*\)')
+_IDENTIFIER = re.compile(r'[A-Za-z][A-Za-z0-9_-]*')
+#: How long a $(command ...) may run before the launch is abandoned.
+COMMAND_TIMEOUT_S = 120.0
 _NODE_KEYS = {'pkg', 'exec', 'name', 'namespace', 'param', 'remap', 'args', 'ros_args',
               'respawn', 'respawn_delay', 'on_exit', 'output', 'env', 'launch-prefix'}
 
@@ -161,6 +173,109 @@ def parse_launch_arguments(argv: List[str]) -> Dict[str, str]:
     return arguments
 
 
+_ON_STDERR = ('fail', 'ignore', 'warn', 'capture')
+
+
+@dataclass
+class _Substitution:
+    """A parsed ``$(kind argument ...)``; each argument is a list of parts."""
+
+    kind: str
+    arguments: List[List['_Part']]
+    source: str
+
+
+_Part = Union[str, _Substitution]
+
+
+class _TemplateParser:
+    """
+    Splits text into literal text and ``$(...)`` substitutions (launch's frontend syntax).
+
+    A substitution is ``$(`` NAME, then arguments each preceded by spaces, then ``)``.
+    An argument is quoted ('...' or "...", holding any text and substitutions) or a run
+    of characters other than spaces, quotes and parentheses, with substitutions. In
+    quotes a backslash escapes the quote, a backslash or ``$``.
+    """
+
+    def __init__(self, text: str, where: str):
+        self.text = text
+        self.where = where
+        self.pos = 0
+
+    def _fail(self, message: str) -> None:
+        raise SystemDescriptionError(f'{self.where}: {message} in {self.text!r}')
+
+    def template(self) -> List[_Part]:
+        """Parse the whole text."""
+        parts: List[_Part] = []
+        literal = ''
+        while self.pos < len(self.text):
+            if self.text.startswith('$(', self.pos):
+                parts += [literal] if literal else []
+                literal = ''
+                parts.append(self._substitution())
+            else:
+                literal += self.text[self.pos]
+                self.pos += 1
+        return parts + ([literal] if literal else [])
+
+    def _substitution(self) -> _Substitution:
+        start = self.pos
+        self.pos += 2
+        name = _IDENTIFIER.match(self.text, self.pos)
+        if name is None:
+            self._fail(f'"$(" at character {start + 1} is not followed by a substitution name')
+        self.pos = name.end()
+        arguments = []
+        while True:
+            spaced = self._skip_spaces()
+            if self.pos >= len(self.text):
+                self._fail(f'the substitution at character {start + 1} has no closing ")"')
+            if self.text[self.pos] == ')':
+                self.pos += 1
+                return _Substitution(name.group(0), arguments, self.text[start:self.pos])
+            if not spaced:
+                self._fail(f'expected a space or ")" at character {self.pos + 1}')
+            arguments.append(self._argument())
+
+    def _skip_spaces(self) -> bool:
+        start = self.pos
+        while self.pos < len(self.text) and self.text[self.pos].isspace():
+            self.pos += 1
+        return self.pos > start
+
+    def _argument(self) -> List[_Part]:
+        start = self.pos
+        quote = self.text[start] if self.text[start] in '\'"' else None
+        self.pos += 1 if quote else 0
+        parts: List[_Part] = []
+        literal = ''
+        while True:
+            if self.pos >= len(self.text):
+                if quote:
+                    self._fail(f'the quote at character {start + 1} is not closed')
+                break
+            char = self.text[self.pos]
+            if self.text.startswith('$(', self.pos):
+                parts += [literal] if literal else []
+                literal = ''
+                parts.append(self._substitution())
+                continue
+            if quote is None and (char.isspace() or char in '()\'"'):
+                break
+            if char == quote:
+                self.pos += 1
+                break
+            escaped = self.text[self.pos + 1:self.pos + 2]
+            if quote and char == '\\' and escaped in (quote, '\\', '$'):
+                char = escaped
+                self.pos += 1
+            literal += char
+            self.pos += 1
+        return parts + ([literal] if literal else [])
+
+
 class _Resolver:
     """Resolves substitutions and entities of launch YAML files into a System."""
 
@@ -176,35 +291,83 @@ class _Resolver:
     def substitute(self, value: object, scope: Dict[str, str], where: str,
                    launch_dir: Path) -> str:
         """Return value with every ``$(...)`` substitution performed."""
-        text = str(value)
+        parts = _TemplateParser(str(value), where).template()
+        return self._evaluate(parts, scope, where, launch_dir)
 
-        def replace(match: 're.Match') -> str:
-            kind, rest = match.group(1), match.group(2).split()
-            if kind == 'var' and len(rest) == 1:
-                if rest[0] not in scope:
-                    raise SystemDescriptionError(
-                        f'{where}: $(var {rest[0]}) is not a declared launch argument '
-                        f'(known: {", ".join(sorted(scope)) or "none"})')
-                return scope[rest[0]]
-            if kind == 'find-pkg-share' and len(rest) == 1:
-                try:
-                    return self._find_package_share(rest[0])
-                except LookupError as error:
-                    raise SystemDescriptionError(
-                        f'{where}: package {rest[0]!r} not found ({error}); is the workspace '
-                        'built and sourced?') from None
-            if kind == 'env' and len(rest) in (1, 2):
-                if rest[0] in self._environ:
-                    return self._environ[rest[0]]
-                if len(rest) == 2:
-                    return rest[1]
+    def _evaluate(self, parts: List['_Part'], scope: Dict[str, str], where: str,
+                  launch_dir: Path) -> str:
+        return ''.join(part if isinstance(part, str)
+                       else self._perform(part, scope, where, launch_dir) for part in parts)
+
+    def _perform(self, substitution: '_Substitution', scope: Dict[str, str], where: str,
+                 launch_dir: Path) -> str:
+        kind = substitution.kind
+        rest = [self._evaluate(argument, scope, where, launch_dir)
+                for argument in substitution.arguments]
+        if kind == 'var' and len(rest) == 1:
+            if rest[0] not in scope:
                 raise SystemDescriptionError(
-                    f'{where}: environment variable {rest[0]} is not set and has no default')
-            if kind == 'dirname' and not rest:
-                return str(launch_dir)
-            raise SystemDescriptionError(f'{where}: unsupported substitution {match.group(0)!r}')
+                    f'{where}: $(var {rest[0]}) is not a declared launch argument '
+                    f'(known: {", ".join(sorted(scope)) or "none"})')
+            return scope[rest[0]]
+        if kind == 'find-pkg-share' and len(rest) == 1:
+            try:
+                return self._find_package_share(rest[0])
+            except LookupError as error:
+                raise SystemDescriptionError(
+                    f'{where}: package {rest[0]!r} not found ({error}); is the workspace '
+                    'built and sourced?') from None
+        if kind == 'env' and len(rest) in (1, 2):
+            if rest[0] in self._environ:
+                return self._environ[rest[0]]
+            if len(rest) == 2:
+                return rest[1]
+            raise SystemDescriptionError(
+                f'{where}: environment variable {rest[0]} is not set and has no default')
+        if kind == 'dirname' and not rest:
+            return str(launch_dir)
+        if kind == 'command' and len(rest) in (1, 2):
+            return self._run_command(rest[0], rest[1] if len(rest) == 2 else 'fail', where)
+        raise SystemDescriptionError(
+            f'{where}: unsupported substitution {substitution.source!r}')
 
-        return _SUBSTITUTION.sub(replace, text)
+    def _run_command(self, command: str, on_stderr: str, where: str) -> str:
+        """Run a $(command ...) without a shell; return its standard output."""
+        what = f'{where}: $(command {command!r})'
+        if on_stderr not in _ON_STDERR:
+            raise SystemDescriptionError(
+                f'{what}: on_stderr must be one of {", ".join(_ON_STDERR)}, got {on_stderr!r}')
+        try:
+            argv = shlex.split(command)
+        except ValueError as error:
+            raise SystemDescriptionError(f'{what}: cannot split the command: {error}') from None
+        if not argv:
+            raise SystemDescriptionError(f'{what}: the command is empty')
+        try:
+            result = subprocess.run(
+                argv, env=self._environ, stdin=subprocess.DEVNULL, capture_output=True,
+                encoding='utf-8', errors='replace', timeout=COMMAND_TIMEOUT_S)
+        except FileNotFoundError:
+            raise SystemDescriptionError(f'{what}: program {argv[0]!r} not found') from None
+        except OSError as error:
+            raise SystemDescriptionError(f'{what}: cannot run {argv[0]!r}: {error}') from None
+        except subprocess.TimeoutExpired:
+            raise SystemDescriptionError(
+                f'{what}: still running after {COMMAND_TIMEOUT_S:g} s, stopped') from None
+        errors = result.stderr.strip()
+        if result.returncode != 0:
+            raise SystemDescriptionError(
+                f'{what} failed with exit code {result.returncode}'
+                + (f':\n{errors}' if errors else ' (no error output)'))
+        if errors and on_stderr == 'fail':
+            raise SystemDescriptionError(
+                f"{what} wrote to standard error (add 'ignore', 'warn' or 'capture' after "
+                f'the command to accept that):\n{errors}')
+        if errors and on_stderr == 'warn':
+            print(f'warning: {what} wrote to standard error:\n{errors}', file=sys.stderr)
+        if on_stderr == 'capture':
+            return result.stdout + result.stderr
+        return result.stdout
 
     def load(self, path: Path, inherited: Dict[str, str]) -> None:
         """

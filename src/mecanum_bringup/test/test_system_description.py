@@ -1,11 +1,13 @@
 """Tests of the launch YAML reader, on real files in a temporary folder."""
 
 from pathlib import Path
+import sys
 import textwrap
 
 from mecanum_bringup.system_description import (
     load_system, parse_launch_arguments, SystemDescriptionError, yaml_scalar)
 import pytest
+import yaml
 
 
 @pytest.fixture
@@ -187,3 +189,120 @@ def test_parse_launch_arguments_rejects(bad):
 ])
 def test_yaml_scalar(value, text):
     assert yaml_scalar(value) == text
+
+
+# --- $(command ...) ---------------------------------------------------------------------
+
+ECHO_SCRIPT = """
+import os, sys
+sys.stdout.write('|'.join(sys.argv[1:]))
+if os.environ.get('ECHO_STDERR'):
+    sys.stderr.write(os.environ['ECHO_STDERR'])
+sys.exit(int(os.environ.get('ECHO_EXIT', '0')))
+"""
+
+
+@pytest.fixture
+def echo(tmp_path):
+    """Return the command line of a script printing its arguments joined by '|'."""
+    script = tmp_path / 'echo_args.py'
+    script.write_text(ECHO_SCRIPT)
+    return f'{sys.executable} {script}'
+
+
+def command_system(tmp_path, find, value, environ=None, arguments=None):
+    """Load a one-node system whose node name is value; return the name it got."""
+    path = tmp_path / 'c.launch.yaml'
+    path.write_text(yaml.safe_dump({'launch': [
+        {'arg': {'name': 'word', 'default': 'plain'}},
+        {'set_env': {'name': 'FROM_SET_ENV', 'value': 'set'}},
+        {'node': {'pkg': 'pkg_a', 'exec': 'x', 'name': value}}]}))
+    system = load_system(path, arguments or {}, find, environ=dict(environ or {}))
+    return system.nodes[0].name
+
+
+def test_command_output_with_quoted_arguments_and_nested_substitutions(
+        packages, tmp_path, echo):
+    _, find = packages
+    value = (f"$(command '{echo} \"two words\" $(var word) "
+             "$(find-pkg-share pkg_a)/urdf/robot.xacro')")
+    assert command_system(tmp_path, find, value, arguments={'word': 'given'}) == \
+        f'two words|given|{find("pkg_a")}/urdf/robot.xacro'
+
+
+def test_command_runs_in_the_launch_environment_without_a_shell(packages, tmp_path, echo):
+    _, find = packages
+    # $HOME and ; are not expanded or interpreted: there is no shell. The environment
+    # (with set_env entries) is the command's.
+    assert command_system(tmp_path, find, f"$(command '{echo} $HOME ;')") == '$HOME|;'
+    assert command_system(tmp_path, find, f"$(command '{echo} out' ignore)",
+                          environ={'ECHO_STDERR': 'ignored'}) == 'out'
+    script = tmp_path / 'env.py'
+    script.write_text('import os; print(os.environ["FROM_SET_ENV"])')
+    assert command_system(tmp_path, find, f"$(command '{sys.executable} {script}')") == 'set\n'
+
+
+def test_command_output_as_a_parameter_stays_one_string(packages, tmp_path):
+    _, find = packages
+    script = tmp_path / 'urdf.py'
+    script.write_text("print('<robot name=\"r\">\\n  <link name=\"a\"/>\\n</robot>')")
+    path = tmp_path / 'p.launch.yaml'
+    path.write_text(yaml.safe_dump({'launch': [{'node': {
+        'pkg': 'pkg_a', 'exec': 'x', 'param': [
+            {'name': 'robot_description',
+             'value': f"$(command '{sys.executable} {script}')"}]}}]}))
+    (node,) = load_system(path, {}, find, environ={}).nodes
+    (name, value), = node.parameters
+    assert name == 'robot_description'
+    # Read as YAML, as launch_ros does: the lines fold into one string.
+    assert value == '<robot name="r"> <link name="a"/> </robot>'
+
+
+@pytest.mark.parametrize('on_stderr, expected', [
+    ('ignore', 'out'), ('warn', 'out'), ('capture', 'outerr')])
+def test_command_standard_error_options(packages, tmp_path, echo, capsys, on_stderr,
+                                        expected):
+    _, find = packages
+    value = f"$(command '{echo} out' {on_stderr})"
+    assert command_system(tmp_path, find, value, environ={'ECHO_STDERR': 'err'}) == expected
+    warned = 'wrote to standard error' in capsys.readouterr().err
+    assert warned == (on_stderr == 'warn')
+
+
+@pytest.mark.parametrize('value, environ, message', [
+    ("$(command '{echo} x')", {'ECHO_EXIT': '3'}, 'failed with exit code 3'),
+    ("$(command '{echo} x')", {'ECHO_EXIT': '1', 'ECHO_STDERR': 'xacro: no such file'},
+     'failed with exit code 1:\nxacro: no such file'),
+    ("$(command '{echo} x')", {'ECHO_STDERR': 'a warning'},
+     "wrote to standard error (add 'ignore'"),
+    ("$(command '{echo}' loudly)", {}, 'on_stderr must be one of'),
+    ("$(command 'no_such_program_anywhere --flag')", {},
+     "program 'no_such_program_anywhere' not found"),
+    ("$(command '')", {}, 'the command is empty'),
+    ("$(command 'echo \"unbalanced')", {}, 'cannot split the command'),
+    ("$(command '{echo} x", {}, 'is not closed'),
+    ('$(command {echo}', {}, 'has no closing ")"'),
+    ('$(var word)x)', {}, None),
+    ('$(var)', {}, 'unsupported substitution'),
+    ('$( var word)', {}, 'not followed by a substitution name'),
+    ("$(var 'word'x)", {}, 'expected a space or ")"'),
+])
+def test_command_and_syntax_errors_name_the_file(packages, tmp_path, echo, value, environ,
+                                                 message):
+    _, find = packages
+    value = value.replace('{echo}', echo)
+    if message is None:         # not an error: text after a substitution is kept
+        assert command_system(tmp_path, find, value, environ) == 'plainx)'
+        return
+    with pytest.raises(SystemDescriptionError) as error:
+        command_system(tmp_path, find, value, environ)
+    assert message in str(error.value)
+    assert 'c.launch.yaml' in str(error.value)
+
+
+def test_escapes_in_quoted_arguments(packages, tmp_path, echo):
+    _, find = packages
+    value = f"$(command '{echo} \\'it\\'\\\\s \\$(var word)')"
+    # In the argument: \' is a quote, \\ a backslash, \$ a dollar (no substitution);
+    # then shlex joins 'it' and \s, and keeps $(var word) literal.
+    assert command_system(tmp_path, find, value) == 'its|$(var|word)'
