@@ -24,14 +24,20 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
-    ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml'),
+    ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'urdf/*.xacro', 'meshes/*.stl'),
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
     description=(
-        'Robot model of the mecanum robot'),
+        'Robot model of the mecanum robot: URDF/xacro, meshes and its state publisher'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
-    entry_points={},
+    entry_points={
+        'console_scripts': [
+            'state_publisher = mecanum_description.state_publisher:main',
+            'joint_state_publisher = mecanum_description.joint_state_publisher:main',
+            'generate_meshes = mecanum_description.meshes:main',
+        ],
+    },
 )

@@ -5,7 +5,9 @@ rclpy's own signal handler would shut the context down before a node could send 
 final zero command, so SIGINT (Ctrl-C) and SIGTERM are turned into KeyboardInterrupt
 and the node's ``close()`` (if it has one) runs while the context is still valid.
 A parameter error (bad value or type, unreadable parameter file) is logged as fatal
-and gives exit code 2, without a traceback.
+and gives exit code 2, without a traceback. The default spin returns to Python every
+``WAKE_PERIOD_S``: a wait without a timeout never returns while no message arrives,
+so the signal handlers would not run in an idle node without timers.
 """
 
 import signal
@@ -13,13 +15,25 @@ from typing import Callable, List, Optional
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 
+#: The longest the default spin waits before returning to Python (to see signals), s.
+WAKE_PERIOD_S = 0.2
+
+
 def _raise_keyboard_interrupt(_signum, _frame):
     raise KeyboardInterrupt
+
+
+def spin_waking(node: Node) -> None:
+    """Spin node until its context shuts down, returning to Python every WAKE_PERIOD_S."""
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    while node.context.ok():
+        executor.spin_once(timeout_sec=WAKE_PERIOD_S)
 
 
 def run_node(node_factory: Callable[[], Node], name: str,
@@ -28,7 +42,7 @@ def run_node(node_factory: Callable[[], Node], name: str,
     """
     Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code.
 
-    ``spin`` replaces ``rclpy.spin`` for nodes that drive their own loop.
+    ``spin`` replaces :func:`spin_waking` for nodes that drive their own loop.
     """
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
@@ -48,7 +62,7 @@ def run_node(node_factory: Callable[[], Node], name: str,
         rclpy.try_shutdown()
         return 0
     try:
-        (spin or rclpy.spin)(node)
+        (spin or spin_waking)(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
