@@ -33,5 +33,9 @@ setup(
         'Localization of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
-    entry_points={},
+    entry_points={
+        'console_scripts': [
+            'ekf_node = mecanum_localization.ekf_node:main',
+        ],
+    },
 )

@@ -1,0 +1,14 @@
+"""Launch localization.launch.yaml with ros2 launch (the pip runner reads the same file)."""
+
+import os
+
+from launch import LaunchDescription
+from launch.actions import IncludeLaunchDescription
+from launch.launch_description_sources import AnyLaunchDescriptionSource
+
+
+def generate_launch_description():
+    """Include the YAML system description."""
+    here = os.path.dirname(os.path.realpath(__file__))
+    return LaunchDescription([IncludeLaunchDescription(
+        AnyLaunchDescriptionSource(os.path.join(here, 'localization.launch.yaml')))])
