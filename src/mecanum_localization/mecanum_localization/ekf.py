@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import math
 from typing import Deque, List, Optional, Sequence
 
+from mecanum_localization.transforms import wrap_angle
 import numpy as np
 
 STATE_SIZE = 8
@@ -35,12 +36,6 @@ X, Y, YAW, VX, VY, VYAW, AX, AY = range(STATE_SIZE)
 STATE_NAMES = ('x', 'y', 'yaw', 'vx', 'vy', 'vyaw', 'ax', 'ay')
 #: Smallest variance a measurement may claim (robot_localization's floor).
 MIN_VARIANCE = 1e-9
-
-
-def wrap_angle(angle: float) -> float:
-    """Wrap an angle in radians to (-pi, pi]."""
-    wrapped = math.remainder(angle, 2.0 * math.pi)
-    return math.pi if wrapped <= -math.pi else wrapped
 
 
 def predict_state(state: np.ndarray, dt: float) -> np.ndarray:

@@ -36,9 +36,9 @@ from mecanum_interfaces.srv import SetPose
 from mecanum_localization.ekf import (
     AX, AY, Measurement, PlanarEkf, VX, VY, VYAW, X, Y, YAW)
 from mecanum_localization.ekf_config import EkfConfig, parse_ekf_config, SensorConfig
-from mecanum_localization.sensor_fusion import (
-    Conversion, FrameTree, IDENTITY, planar_covariance_6, PlanarTransform, quaternion_yaw,
-    SensorFrontEnd)
+from mecanum_localization.sensor_fusion import Conversion, planar_covariance_6, SensorFrontEnd
+from mecanum_localization.transforms import (
+    IDENTITY, PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
@@ -78,7 +78,7 @@ class EkfNode(Node):
         self.filter = PlanarEkf(config.process_noise, config.initial_covariance,
                                 config.initial_state, config.smooth_lagged_data,
                                 config.history_length_s)
-        self.frames = FrameTree()
+        self.frames = TransformBuffer()
         self.front_ends = {s.name: SensorFrontEnd(s, config.gravitational_acceleration_m_s2)
                            for s in config.sensors}
         self._pending: List[Tuple[float, int, Measurement]] = []
@@ -159,27 +159,30 @@ class EkfNode(Node):
                            f'{transform.header.frame_id} -> {transform.child_frame_id} is not '
                            'finite: ignored')
                 continue
-            self.frames.add(transform.header.frame_id, transform.child_frame_id, planar)
+            self.frames.set_transform(transform.header.frame_id, transform.child_frame_id,
+                                      planar, static=True)
 
     def _mount(self, frame_id: str, topic: str) -> Optional[PlanarTransform]:
         """Return the sensor frame in base_link_frame, or None (warned)."""
         base = self.config.base_link_frame
-        mount = self.frames.lookup(base, frame_id or base)
-        if mount is None:
+        try:
+            return self.frames.lookup(base, frame_id or base)
+        except TransformError:
             self._warn(f'frame {frame_id}', f'{topic}: no transform from frame {frame_id!r} to '
                        f'{base} on /tf_static: message dropped')
-        return mount
+            return None
 
     def _in_world(self, frame_id: str, topic: str) -> Optional[PlanarTransform]:
         """Return the message frame in world_frame (identity if empty), or None (warned)."""
         world = self.config.world_frame
         if not frame_id.lstrip('/') or frame_id.lstrip('/') == world:
             return IDENTITY
-        frame = self.frames.lookup(world, frame_id)
-        if frame is None:
+        try:
+            return self.frames.lookup(world, frame_id)
+        except TransformError:
             self._warn(f'frame {frame_id}', f'{topic}: pose in frame {frame_id!r} and no static '
                        f'transform from it to {world}: pose dropped')
-        return frame
+            return None
 
     # -- sensor messages ------------------------------------------------------------------
 

@@ -22,11 +22,12 @@ Non-finite numbers in the used fields make the whole message unusable (``problem
 
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple
 
 from mecanum_localization.ekf import (
     AX, AY, Measurement, VX, VY, VYAW, wrap_angle, X, Y, YAW)
 from mecanum_localization.ekf_config import SensorConfig
+from mecanum_localization.transforms import IDENTITY, PlanarTransform, quaternion_yaw
 import numpy as np
 
 #: Indices of x, y and yaw (or of vx, vy and vyaw) in a ROS 6x6 pose (twist) covariance.
@@ -35,78 +36,6 @@ POSE_NAMES = ('x', 'y', 'yaw')
 POSE_INDEX = {'x': X, 'y': Y, 'yaw': YAW}
 #: What a differenced pose variable measures.
 RATE_INDEX = {'x': VX, 'y': VY, 'yaw': VYAW}
-
-
-@dataclass(frozen=True)
-class PlanarTransform:
-    """A planar rigid transform: the pose (x, y m, yaw rad) of a child frame in its parent."""
-
-    x: float = 0.0
-    y: float = 0.0
-    yaw: float = 0.0
-
-    def compose(self, other: 'PlanarTransform') -> 'PlanarTransform':
-        """Return self * other (other expressed in self's child frame)."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return PlanarTransform(self.x + c * other.x - s * other.y,
-                               self.y + s * other.x + c * other.y,
-                               wrap_angle(self.yaw + other.yaw))
-
-    def inverse(self) -> 'PlanarTransform':
-        """Return the transform from child back to parent."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return PlanarTransform(-c * self.x - s * self.y, s * self.x - c * self.y,
-                               wrap_angle(-self.yaw))
-
-    def rotation(self) -> np.ndarray:
-        """Return the 2x2 rotation matrix of the yaw."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return np.array([[c, -s], [s, c]])
-
-
-IDENTITY = PlanarTransform()
-
-
-class FrameTree:
-    """
-    Static transforms (from /tf_static), composed along chains; planar parts only.
-
-    Each child frame has one parent (a newer transform replaces the older one), as in tf2.
-    """
-
-    MAX_DEPTH = 100
-
-    def __init__(self):
-        self._parents: Dict[str, Tuple[str, PlanarTransform]] = {}
-
-    def add(self, parent: str, child: str, transform: PlanarTransform) -> None:
-        """Record the pose of child in parent."""
-        self._parents[child.lstrip('/')] = (parent.lstrip('/'), transform)
-
-    def _to_root(self, frame: str) -> Tuple[str, PlanarTransform]:
-        transform = IDENTITY
-        for _ in range(self.MAX_DEPTH):
-            if frame not in self._parents:
-                return frame, transform
-            frame, link = self._parents[frame]
-            transform = link.compose(transform)
-        return '', transform  # a cycle: no root
-
-    def lookup(self, target: str, source: str) -> Optional[PlanarTransform]:
-        """Return the pose of frame source in frame target, or None if not connected."""
-        target, source = target.lstrip('/'), source.lstrip('/')
-        if target == source:
-            return IDENTITY
-        target_root, root_target = self._to_root(target)
-        source_root, root_source = self._to_root(source)
-        if not target_root or target_root != source_root:
-            return None
-        return root_target.inverse().compose(root_source)
-
-
-def quaternion_yaw(qx: float, qy: float, qz: float, qw: float) -> float:
-    """Return the yaw (Z of a ZYX rotation) of a quaternion."""
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
 
 
 def gravity_in_frame(qx: float, qy: float, qz: float, qw: float,

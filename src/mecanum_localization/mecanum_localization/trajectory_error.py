@@ -9,33 +9,17 @@ interpolated linearly at the estimate's time stamps (yaw unwrapped first); estim
 samples outside the truth's time span are left out.
 """
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 import math
-from typing import Sequence, Tuple
+from typing import Sequence
 
+from mecanum_localization.transforms import PlanarTransform
 import numpy as np
 
-Pose = Tuple[float, float, float]
 
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
+def wrap_angles(angle: np.ndarray) -> np.ndarray:
     """Wrap angles (rad) to [-pi, pi)."""
     return (np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def compose(a: Pose, b: Pose) -> Pose:
-    """Return a * b: pose b (given in frame a) expressed in a's parent frame."""
-    ax, ay, ayaw = a
-    c, s = math.cos(ayaw), math.sin(ayaw)
-    return (ax + c * b[0] - s * b[1], ay + s * b[0] + c * b[1],
-            float(wrap_angle(ayaw + b[2])))
-
-
-def inverse(a: Pose) -> Pose:
-    """Return the inverse transform of pose a."""
-    x, y, yaw = a
-    c, s = math.cos(yaw), math.sin(yaw)
-    return (-(c * x + s * y), s * x - c * y, float(wrap_angle(-yaw)))
 
 
 def interpolate_poses(times_s: Sequence[float], poses: np.ndarray,
@@ -47,7 +31,7 @@ def interpolate_poses(times_s: Sequence[float], poses: np.ndarray,
     yaw = np.unwrap(poses[:, 2])
     return np.column_stack([np.interp(query, times, poses[:, 0]),
                             np.interp(query, times, poses[:, 1]),
-                            wrap_angle(np.interp(query, times, yaw))])
+                            wrap_angles(np.interp(query, times, yaw))])
 
 
 @dataclass(frozen=True)
@@ -80,10 +64,12 @@ def trajectory_error(truth_times_s: Sequence[float], truth_poses: np.ndarray,
     estimate_times, estimate = estimate_times[inside], estimate[inside]
     truth = interpolate_poses(truth_times, truth_poses, estimate_times)
     # The rigid transform world <- estimate frame making them agree at the first sample.
-    world_from_estimate = compose(tuple(truth[0]), inverse(tuple(estimate[0])))
-    aligned = np.array([compose(world_from_estimate, tuple(p)) for p in estimate])
+    world_from_estimate = PlanarTransform(*truth[0]).compose(
+        PlanarTransform(*estimate[0]).inverse())
+    aligned = np.array([astuple(world_from_estimate.compose(PlanarTransform(*p)))
+                        for p in estimate])
     position = np.hypot(aligned[:, 0] - truth[:, 0], aligned[:, 1] - truth[:, 1])
-    yaw = np.abs(wrap_angle(aligned[:, 2] - truth[:, 2]))
+    yaw = np.abs(wrap_angles(aligned[:, 2] - truth[:, 2]))
     return TrajectoryError(
         samples=len(position),
         rms_position_m=float(np.sqrt(np.mean(position ** 2))),

@@ -4,8 +4,8 @@ import math
 
 from mecanum_localization.ekf import AX, AY, VX, VY, VYAW, X, Y, YAW
 from mecanum_localization.ekf_config import RL_VARIABLES, SensorConfig
-from mecanum_localization.sensor_fusion import (
-    FrameTree, gravity_in_frame, PlanarTransform, quaternion_yaw, SensorFrontEnd)
+from mecanum_localization.sensor_fusion import gravity_in_frame, SensorFrontEnd
+from mecanum_localization.transforms import PlanarTransform, quaternion_yaw
 import numpy as np
 import pytest
 
@@ -43,37 +43,7 @@ def imu_sample(front, orientation=None, orientation_covariance=NO_DATA, gyro_z=0
                      covariance_3(0.0025, 0.0025, 0.0025), mount)
 
 
-# -- transforms and frames ----------------------------------------------------------------
-
-def test_planar_transform_compose_and_inverse():
-    # A frame 1 m ahead, turned left: a point 1 m ahead of it is at (1, 1).
-    composed = PlanarTransform(1.0, 0.0, math.pi / 2).compose(PlanarTransform(1.0, 0.0, 0.0))
-    assert (composed.x, composed.y, composed.yaw) == pytest.approx((1.0, 1.0, math.pi / 2))
-    transform = PlanarTransform(0.3, -0.2, 2.0)
-    identity = transform.inverse().compose(transform)
-    assert (identity.x, identity.y, identity.yaw) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
-
-
-def test_frame_tree_composes_chains_both_ways():
-    tree = FrameTree()
-    tree.add('base_link', 'imu_mount', PlanarTransform(0.1, 0.0, math.pi / 2))
-    tree.add('imu_mount', 'imu_link', PlanarTransform(0.05, 0.0, 0.0))
-    found = tree.lookup('base_link', 'imu_link')
-    assert (found.x, found.y, found.yaw) == pytest.approx((0.1, 0.05, math.pi / 2))
-    back = tree.lookup('imu_link', 'base_link')
-    assert (back.x, back.y, back.yaw) == pytest.approx((-0.05, 0.1, -math.pi / 2))
-    assert tree.lookup('base_link', 'laser') is None
-    assert tree.lookup('/base_link', 'base_link') == PlanarTransform()
-    # base_link below a common parent: the IMU 0.2 m ahead of base_footprint, base_link
-    # 0.1 m ahead of it too: 0.1 m ahead of base_link.
-    tree = FrameTree()
-    tree.add('base_footprint', 'base_link', PlanarTransform(0.1, 0.0, 0.0))
-    tree.add('base_footprint', 'imu_link', PlanarTransform(0.2, 0.0, 0.0))
-    assert tree.lookup('base_link', 'imu_link').x == pytest.approx(0.1)
-    # A newer transform of a child replaces the older one.
-    tree.add('base_footprint', 'imu_link', PlanarTransform(0.3, 0.0, 0.0))
-    assert tree.lookup('base_link', 'imu_link').x == pytest.approx(0.2)
-
+# -- IMU orientation ---------------------------------------------------------------------
 
 def test_quaternion_yaw_and_gravity_of_a_tilted_imu():
     assert quaternion_yaw(*yaw_quaternion(2.5)) == pytest.approx(2.5)
