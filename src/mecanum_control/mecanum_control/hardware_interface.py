@@ -9,7 +9,9 @@ covariances from the ``imu_*_stddev_*`` parameters, no orientation; with
 ``imu_rest_calibration`` the gyro bias, and the accelerometer's x/y bias on a level
 floor, are measured whenever the robot rests for ``imu_rest_time_s`` and removed; see
 mecanum_control.imu_calibration) and
-``/diagnostics`` (link state, board faults, frame statistics). Service
+``/diagnostics`` (link state, board faults, frame statistics). With
+``stamp_from_board_clock`` (true) samples are stamped with the time the board measured
+them (its clock mapped to ROS time, mecanum_control.board_clock), not when they arrived. Service
 ``~/clear_board_faults`` (std_srvs/Trigger) asks the board to clear latched faults.
 
 Safety: efforts older than ``effort_timeout_s`` are replaced by zero;
@@ -29,8 +31,10 @@ import threading
 import time
 from typing import Optional
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mecanum_control import esp32_protocol as proto
+from mecanum_control.board_clock import BoardClockSync
 from mecanum_control.imu_calibration import ImuRestCalibrator
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
@@ -71,6 +75,9 @@ class HardwareInterface(Node):
             'imu_angular_velocity_stddev_rad_s', 0.005).value)
         accel_stddev = positive('imu_linear_acceleration_stddev_m_s2', self.declare_parameter(
             'imu_linear_acceleration_stddev_m_s2', 0.05).value)
+        # Stamps from the board's clock (when each sample was measured), not receipt.
+        self.board_clock = (BoardClockSync() if self.declare_parameter(
+            'stamp_from_board_clock', True).value else None)
         self.imu_calibrator = None
         if self.declare_parameter('imu_rest_calibration', True).value:
             self.imu_calibrator = ImuRestCalibrator(rest_time_s=positive(
@@ -347,7 +354,12 @@ class HardwareInterface(Node):
             status = tracker.update(frame.seq)
         if status in ('duplicate', 'stale'):
             return
-        stamp = self.get_clock().now().to_msg()
+        now_ns = self.get_clock().now().nanoseconds
+        if self.board_clock is not None:
+            stamp_ns = int(round(self.board_clock.stamp(board_time_us, now_ns * 1e-9) * 1e9))
+        else:
+            stamp_ns = now_ns
+        stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
         if isinstance(message, proto.EncoderTicks):
             # Unwrap the 16-bit frame counter into WheelTicks' 32-bit one, keeping gaps.
             step = 1
