@@ -33,5 +33,10 @@ setup(
         'Navigation of the mecanum robot'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
-    entry_points={},
+    entry_points={
+        'console_scripts': [
+            'map_server = mecanum_navigation.map_server:main',
+            'map_saver_cli = mecanum_navigation.map_saver:main',
+        ],
+    },
 )

@@ -38,6 +38,7 @@ setup(
         'console_scripts': [
             'simulation_node = robot_simulation.simulation_node:main',
             'simulator_node = robot_simulation.simulator_node:main',
+            'world_to_map = robot_simulation.world_to_map:main',
         ],
     },
 )

@@ -387,3 +387,39 @@ def _yaml_position(error: yaml.YAMLError) -> str:
     if mark is None:
         return f': {problem}'
     return f' at line {mark.line + 1}, column {mark.column + 1}: {problem}'
+
+
+def find_map_file(text: str) -> Path:
+    """
+    Return the map YAML that text names: a path, ``package://PKG/relative/path``, or NAME.
+
+    A package URL is looked up in the package's installed share directory (the source
+    tree's package directory when it is not installed); a bare NAME (no '/' and no
+    suffix) is ``maps/NAME.yaml`` of mecanum_navigation. Raises MapError if the package
+    or file does not exist.
+    """
+    text = str(text).strip()
+    if text.startswith('package://'):
+        package, _, relative = text[len('package://'):].partition('/')
+        if not package or not relative:
+            raise MapError(f'{text!r}: expected package://PACKAGE/path/inside/its/share')
+        path = _package_directory(package) / relative
+    elif '/' not in text and not Path(text).suffix and text:
+        path = _package_directory('mecanum_navigation') / 'maps' / f'{text}.yaml'
+    else:
+        path = Path(text).expanduser()
+    if not path.is_file():
+        raise MapError(f'{text!r}: no map file at {path}')
+    return path
+
+
+def _package_directory(package: str) -> Path:
+    """Return a package's share directory, or its source directory when not installed."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        return Path(get_package_share_directory(package))
+    except (ImportError, LookupError):
+        source = Path(__file__).resolve().parents[2] / package
+        if source.is_dir():
+            return source
+        raise MapError(f'package {package!r} not found (neither installed nor in {source.parent})')

@@ -2,8 +2,9 @@
 
 import math
 
-from mecanum_navigation.map_io import (cell_center, load_map, MapError, OccupancyMap,
-                                       read_pgm, save_map, world_to_cell)
+from mecanum_navigation.map_io import (
+    cell_center, find_map_file, load_map, MapError, OccupancyMap, read_pgm, save_map,
+    world_to_cell)
 import numpy as np
 import pytest
 import yaml
@@ -249,3 +250,23 @@ def test_save_refuses_png_and_bad_thresholds(tmp_path):
         save_map(occupancy, tmp_path / 'a.yaml', 'a.png')
     with pytest.raises(MapError, match='thresholds out of order'):
         save_map(occupancy, tmp_path / 'a.yaml', free_thresh=0.7)
+
+
+def test_find_map_file_takes_paths_package_urls_and_names(tmp_path):
+    """A path, package://mecanum_navigation/maps/X.yaml and the bare name X agree."""
+    by_name = find_map_file('lab_map')
+    assert by_name.name == 'lab_map.yaml' and by_name.is_file()
+    assert find_map_file('package://mecanum_navigation/maps/lab_map.yaml') == by_name
+    assert find_map_file(str(by_name)) == by_name
+
+
+@pytest.mark.parametrize('text, message', [
+    ('moon', 'no map file at .*maps/moon.yaml'),
+    ('package://mecanum_navigation', 'expected package://PACKAGE/path'),
+    ('package://no_such_package_here/maps/x.yaml', "package 'no_such_package_here' not found"),
+    ('/nonexistent/house.yaml', 'no map file at /nonexistent/house.yaml'),
+])
+def test_find_map_file_names_what_is_missing(text, message):
+    """Each unresolvable name gives a MapError saying what was looked for."""
+    with pytest.raises(MapError, match=message):
+        find_map_file(text)

@@ -14,7 +14,7 @@ y left/north, yaw counter-clockwise from +x. A world file looks like this::
       - {name: sofa, box: {center: [3.0, 2.0], size: [2.0, 0.9], yaw_deg: 0}}
       - {name: table, circle: {center: [6.0, 4.0], radius_m: 0.5}}
       - {name: counter, polygon: [[8.0, 0.1], [11.9, 0.1], [11.9, 0.7], [8.0, 0.7]]}
-      map: lab_map.yaml                         # optional Nav2 map; occupied cells are obstacles
+      map: lab_map.yaml    # optional Nav2 map (a path or package://PKG/path); occupied = obstacle
       test_zone: [[0.2, 0.2], [11.8, 0.2], [11.8, 8.8], [0.2, 8.8]]   # optional polygon
       moving_obstacles:                         # optional, e.g. a person walking a path
       - {name: person, radius_m: 0.25, speed_m_s: 0.8, path: [[5, 5], [9, 5]], loop: true}
@@ -46,7 +46,8 @@ from pathlib import Path
 import re
 from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
-from mecanum_navigation.map_io import load_map, MapError, OccupancyMap, world_to_cell
+from mecanum_navigation.map_io import (
+    find_map_file, load_map, MapError, OccupancyMap, world_to_cell)
 import numpy as np
 import yaml
 
@@ -638,10 +639,13 @@ class _Parser:
             return None, None
         if not isinstance(value, str) or not value.strip():
             self.fail('map', f'must be a map YAML file name, not {value!r}')
-        map_path = Path(value).expanduser()
-        if not map_path.is_absolute():
-            map_path = self.path.parent / map_path
         try:
+            if value.startswith('package://'):
+                map_path = find_map_file(value)
+            else:
+                map_path = Path(value).expanduser()
+                if not map_path.is_absolute():
+                    map_path = self.path.parent / map_path
             return load_map(map_path), map_path
         except MapError as error:
             self.fail(f'map {value!r}', str(error))

@@ -1,0 +1,76 @@
+"""
+map_saver_cli: nav2_map_server's map saver for the pip setup.
+
+Waits for one nav_msgs/OccupancyGrid on ``--map-topic`` ('map'; transient local, so a
+map server's or SLAM's latched map arrives at once) and writes it as a Nav2 map,
+``NAME.yaml`` + ``NAME.pgm`` (``mecanum_navigation.map_io.save_map``, trinary, as
+map_saver writes it). Usage, as Nav2's::
+
+    map_saver_cli -f ~/maps/apartment [-t map] [--occ 0.65] [--free 0.196] [--timeout 10]
+
+The default free threshold is map_io's 0.196 rather than Nav2's 0.25, so that the
+unknown grey it writes loads back as unknown (see map_io).
+
+Exit code 0 once saved, 1 when no map arrived in time or it could not be written.
+"""
+
+import argparse
+from pathlib import Path
+import sys
+import time
+
+from mecanum_navigation.grid_messages import occupancy_map
+from mecanum_navigation.map_io import (
+    MapError, SAVE_FREE_THRESH, save_map, SAVE_OCCUPIED_THRESH)
+from nav_msgs.msg import OccupancyGrid
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile
+
+
+def main(args=None) -> int:
+    """Save one map from the map topic; return the exit code."""
+    argv = rclpy.utilities.remove_ros_args(sys.argv if args is None else args)[1:]
+    parser = argparse.ArgumentParser(prog='map_saver_cli', description=__doc__.splitlines()[1])
+    parser.add_argument('-f', dest='name', default='map',
+                        help='map file name without extension (default: map)')
+    parser.add_argument('-t', '--map-topic', default='map', help='topic of the map (map)')
+    parser.add_argument('--occ', type=float, default=SAVE_OCCUPIED_THRESH,
+                        help=f'occupied threshold, 0..1 ({SAVE_OCCUPIED_THRESH})')
+    parser.add_argument('--free', type=float, default=SAVE_FREE_THRESH,
+                        help=f'free threshold, 0..1 ({SAVE_FREE_THRESH})')
+    parser.add_argument('--timeout', type=float, default=10.0,
+                        help='seconds to wait for a map (10)')
+    options = parser.parse_args(argv)
+    if not 0.0 <= options.free < options.occ <= 1.0:
+        parser.error('need 0 <= --free < --occ <= 1')
+    rclpy.init(args=args)
+    node = rclpy.create_node('map_saver')
+    received = []
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    node.create_subscription(OccupancyGrid, options.map_topic, received.append, latched)
+    deadline = time.monotonic() + options.timeout
+    try:
+        while not received and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    logger = rclpy.logging.get_logger('map_saver')
+    if not received:
+        logger.error(f'No map received on {options.map_topic} within {options.timeout:g} s')
+        return 1
+    yaml_path = Path(options.name).expanduser().with_suffix('.yaml')
+    try:
+        save_map(occupancy_map(received[-1]), yaml_path,
+                 occupied_thresh=options.occ, free_thresh=options.free)
+    except (MapError, OSError, ValueError) as error:
+        logger.error(f'Could not save the map: {error}')
+        return 1
+    logger.info(f'Map saved to {yaml_path} and {yaml_path.with_suffix(".pgm")}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
