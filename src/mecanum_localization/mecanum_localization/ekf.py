@@ -26,7 +26,7 @@ and re-applying every later measurement in stamp order (within ``history_length_
 from collections import deque
 from dataclasses import dataclass
 import math
-from typing import Deque, List, Optional, Sequence
+from typing import Deque, List, Optional, Sequence, Tuple
 
 from mecanum_localization.transforms import wrap_angle
 import numpy as np
@@ -80,14 +80,21 @@ class Measurement:
     ``indices`` name the measured variables (0..7, see STATE_NAMES), ``values`` and the
     square ``covariance`` follow that order. ``rejection_threshold`` is the Mahalanobis
     distance (in standard deviations) at or beyond which the measurement is rejected.
+    With ``specific_force`` the ax/ay values are what an accelerometer on base_link reads
+    (the inertial acceleration, including the rotating frame's terms), so the model is
+    ``ax - vyaw vy`` and ``ay + vyaw vx`` instead of ax and ay (the state's accelerations
+    are the rates of the BODY-frame velocities, as in robot_localization, which leaves
+    these terms out: about 1 m/s^2 for a robot strafing at 0.5 m/s while turning at 2 rad/s).
     Malformed shapes raise ValueError; non-finite numbers are accepted here and rejected
     (with a reason) by :meth:`PlanarEkf.process`.
     """
 
-    __slots__ = ('time_s', 'indices', 'values', 'covariance', 'rejection_threshold', 'source')
+    __slots__ = ('time_s', 'indices', 'values', 'covariance', 'rejection_threshold', 'source',
+                 'specific_force')
 
     def __init__(self, time_s: float, indices: Sequence[int], values: Sequence[float],
-                 covariance, rejection_threshold: float = math.inf, source: str = ''):
+                 covariance, rejection_threshold: float = math.inf, source: str = '',
+                 specific_force: bool = False):
         indices = tuple(int(i) for i in indices)
         if not indices or len(set(indices)) != len(indices) or not all(
                 0 <= i < STATE_SIZE for i in indices):
@@ -108,6 +115,7 @@ class Measurement:
         self.covariance = covariance
         self.rejection_threshold = float(rejection_threshold)
         self.source = source
+        self.specific_force = bool(specific_force)
 
     def __repr__(self) -> str:
         """Return a short description (variables, values, time, source)."""
@@ -319,14 +327,32 @@ class PlanarEkf:
         covariance = jacobian @ self.covariance @ jacobian.T + self.process_noise * dt
         self.covariance = 0.5 * (covariance + covariance.T)
 
+    def _observe(self, measurement: Measurement) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the predicted measurement h(x) and its Jacobian H (rows follow indices)."""
+        indices = list(measurement.indices)
+        observation = np.zeros((len(indices), STATE_SIZE))
+        observation[range(len(indices)), indices] = 1.0
+        predicted = self.state[indices].copy()
+        if measurement.specific_force:
+            vx, vy, vyaw = self.state[VX], self.state[VY], self.state[VYAW]
+            for row, index in enumerate(indices):
+                if index == AX:    # ax - vyaw vy
+                    predicted[row] -= vyaw * vy
+                    observation[row, VYAW], observation[row, VY] = -vy, -vyaw
+                elif index == AY:  # ay + vyaw vx
+                    predicted[row] += vyaw * vx
+                    observation[row, VYAW], observation[row, VX] = vx, vyaw
+        return predicted, observation
+
     def _correct(self, measurement: Measurement) -> UpdateResult:
         indices = list(measurement.indices)
         noise = _floored(measurement.covariance)
-        innovation = measurement.values - self.state[indices]
+        predicted, observation = self._observe(measurement)
+        innovation = measurement.values - predicted
         for row, index in enumerate(indices):
             if index == YAW:
                 innovation[row] = wrap_angle(innovation[row])
-        innovation_covariance = self.covariance[np.ix_(indices, indices)] + noise
+        innovation_covariance = observation @ self.covariance @ observation.T + noise
         try:
             np.linalg.cholesky(innovation_covariance)
         except np.linalg.LinAlgError:
@@ -337,12 +363,10 @@ class PlanarEkf:
         if squared_distance >= threshold * threshold:
             return UpdateResult('gated', f'Mahalanobis distance {math.sqrt(squared_distance):.2f}'
                                 f' >= threshold {threshold:g}')
-        # K = P H' S^-1, with H selecting `indices` (S is symmetric).
-        gain = np.linalg.solve(innovation_covariance, self.covariance[indices, :]).T
+        # K = P H' S^-1 (S is symmetric).
+        gain = np.linalg.solve(innovation_covariance, observation @ self.covariance).T
         self.state = self.state + gain @ innovation
         self.state[YAW] = wrap_angle(self.state[YAW])
-        observation = np.zeros((len(indices), STATE_SIZE))
-        observation[range(len(indices)), indices] = 1.0
         complement = np.eye(STATE_SIZE) - gain @ observation
         covariance = complement @ self.covariance @ complement.T + gain @ noise @ gain.T
         self.covariance = 0.5 * (covariance + covariance.T)

@@ -13,6 +13,8 @@ into :class:`~mecanum_localization.ekf.Measurement` objects for the variables th
 * ``*_relative``: the first pose is the origin of the later ones.
 * ``*_differential``: consecutive poses are differenced into body velocities
   (x -> vx, y -> vy, yaw -> vyaw), covariance ``(P_previous + P_current) / dt^2``.
+* IMU accelerations are measurements of the specific force in base_link, modelled with
+  the rotating frame's terms (``Measurement.specific_force``).
 * IMU ``remove_gravitational_acceleration``: gravity (from the message's orientation if it
   has one, else a level robot) is taken out of the accelerations.
 * REP-145: an IMU covariance whose first element is -1 means "not provided".
@@ -214,7 +216,8 @@ class SensorFrontEnd:
             measurements += self._select(
                 time_s, ('ax', 'ay'), (AX, AY), rotation @ acceleration,
                 rotation @ accel_block @ rotation.T,
-                self.config.linear_acceleration_rejection_threshold, 'linear acceleration')
+                self.config.linear_acceleration_rejection_threshold, 'linear acceleration',
+                specific_force=True)
         return Conversion(measurements)
 
     # -- helpers -------------------------------------------------------------------------
@@ -257,7 +260,7 @@ class SensorFrontEnd:
 
     def _select(self, time_s: float, names: Tuple[str, ...], indices: Tuple[int, ...],
                 values: Sequence[float], covariance: np.ndarray, threshold: float,
-                part: str) -> List[Measurement]:
+                part: str, specific_force: bool = False) -> List[Measurement]:
         """Return the measurement of the variables (r_l names) the sensor's config enables."""
         keep = [k for k, name in enumerate(names) if self.config.uses(name)]
         if not keep:
@@ -265,4 +268,4 @@ class SensorFrontEnd:
         covariance = np.asarray(covariance, dtype=float)
         return [Measurement(time_s, [indices[k] for k in keep], [values[k] for k in keep],
                             covariance[np.ix_(keep, keep)], threshold,
-                            f'{self.config.topic} {part}')]
+                            f'{self.config.topic} {part}', specific_force)]

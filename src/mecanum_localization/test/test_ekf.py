@@ -349,3 +349,24 @@ def test_prediction_through_a_sensor_dropout_grows_covariance_without_diverging(
     # The velocity is kept: about 0.2 m/s * 3.33 s further.
     assert ekf.state[X] - x_before == pytest.approx(0.2 * 100 / 30.0, abs=0.01)
     assert ekf.process(Measurement(4.4, [VX], [0.2], [[1e-3]])).status == 'fused'
+
+
+def test_accelerometer_on_a_turning_robot_measures_the_centripetal_term():
+    """Strafing at 0.5 m/s while turning at 2 rad/s: the IMU reads ax = -wz vy = -1 m/s^2."""
+    from mecanum_localization.ekf import AX, AY, Measurement, PlanarEkf, VX, VY, VYAW
+    noise = np.diag([0.01, 0.01, 0.02, 0.05, 0.05, 0.1, 0.5, 0.5])
+    for specific_force, expect_drift in ((True, False), (False, True)):
+        ekf = PlanarEkf(noise, np.eye(8) * 1e-9, np.zeros(8), False, 1.0)
+        ekf.process(Measurement(0.0, [VX, VY, VYAW], [0.0, 0.5, 2.0], np.eye(3) * 1e-6))
+        for step in range(1, 101):  # 1 s of IMU at 100 Hz, no wheel odometry
+            t = step * 0.01
+            ekf.process(Measurement(t, [VYAW], [2.0], [[2.5e-5]]))
+            ekf.process(Measurement(t, [AX, AY], [-1.0, 0.0], np.eye(2) * 0.0025,
+                                    specific_force=specific_force))
+        # The body-frame velocity is constant: (0, 0.5). Modelled right, it stays so;
+        # taken as dv/dt (robot_localization's model) it drifts by about -1 m/s per s.
+        drift = abs(ekf.state[VX])
+        assert (drift > 0.3) == expect_drift, (specific_force, ekf.state[[VX, VY, AX, AY]])
+        if not expect_drift:
+            assert ekf.state[VY] == pytest.approx(0.5, abs=0.02)
+            assert abs(ekf.state[AX]) < 0.05 and abs(ekf.state[AY]) < 0.05
