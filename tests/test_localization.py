@@ -232,7 +232,7 @@ def test_tracks_odometry_survives_bad_data_and_dropouts(localization):
     assert_finite(after_nan)
     assert_moves_like(reference, after_nan, yaw=0.0)
 
-    # Two seconds without any sensor: the filter predicts on (sensor_timeout 0.1 s) at the
+    # Two seconds without any sensor: the filter predicts on (sensor_timeout 0.25 s) at the
     # same velocity, the pose uncertainty grows, and it picks up again afterwards.
     dropout_start = test_node.clock_ns * 1e-9
     sensors.paused = True

@@ -86,6 +86,7 @@ class EkfNode(Node):
         self._epoch_ns: Optional[int] = None
         self._last_now_ns: Optional[int] = None
         self._last_published_time: Optional[float] = None
+        self._last_measurement_s = -math.inf  # stamp of the newest measurement fused
         self._last_warning: Dict[str, float] = {}
 
         self.odom_pub = self.create_publisher(Odometry, 'odometry/filtered', 10)
@@ -281,6 +282,7 @@ class EkfNode(Node):
             return
         self._pending.clear()
         self._last_published_time = None
+        self._last_measurement_s = self._seconds(stamp_ns)
         self.get_logger().info(f'{source}: pose set to x {pose.x:.3f} m, y {pose.y:.3f} m, '
                                f'yaw {pose.yaw:.3f} rad in {self.config.world_frame}')
 
@@ -294,6 +296,7 @@ class EkfNode(Node):
                 self.filter.reset()
                 self._pending.clear()
                 self._last_published_time = None
+                self._last_measurement_s = -math.inf
                 for front in self.front_ends.values():
                     front.reset()
             else:
@@ -304,7 +307,8 @@ class EkfNode(Node):
         if not self.filter.initialized:
             return
         now = self._seconds(now_ns)
-        if now - self.filter.time_s >= self.config.sensor_timeout_s:
+        # No measurement for sensor_timeout: predict to now on every cycle (a dropout).
+        if now - self._last_measurement_s >= self.config.sensor_timeout_s:
             self.filter.predict_to(now)
         if self.filter.time_s != self._last_published_time:
             self._publish()
@@ -313,6 +317,7 @@ class EkfNode(Node):
     def _fuse_pending(self) -> None:
         pending, self._pending = sorted(self._pending, key=lambda item: item[:2]), []
         for _, _, measurement in pending:
+            self._last_measurement_s = max(self._last_measurement_s, measurement.time_s)
             result = self.filter.process(measurement)
             if not result.accepted:
                 self._warn(f'{measurement.source} {result.status}',
