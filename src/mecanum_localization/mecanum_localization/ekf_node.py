@@ -24,12 +24,12 @@ estimate is published with the stamp of the latest one; with no measurement for
 from itertools import count
 import math
 import sys
-import time
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import (
     AccelWithCovarianceStamped, PoseWithCovarianceStamped, TwistWithCovarianceStamped)
+from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.messages import odometry_transform, planar_odometry
 from mecanum_control.node_main import run_node
 from mecanum_interfaces.srv import SetPose
@@ -87,7 +87,7 @@ class EkfNode(Node):
         self._last_now_ns: Optional[int] = None
         self._last_published_time: Optional[float] = None
         self._last_measurement_s = -math.inf  # stamp of the newest measurement fused
-        self._last_warning: Dict[str, float] = {}
+        self._warnings = KeyedThrottle(WARNING_PERIOD_S)
 
         self.odom_pub = self.create_publisher(Odometry, 'odometry/filtered', 10)
         self.accel_pub = (self.create_publisher(AccelWithCovarianceStamped, 'accel/filtered', 10)
@@ -143,9 +143,7 @@ class EkfNode(Node):
 
     def _warn(self, key: str, text: str) -> None:
         """Log a warning, at most once per WARNING_PERIOD_S for the same key."""
-        now = time.monotonic()
-        if now - self._last_warning.get(key, -math.inf) >= WARNING_PERIOD_S:
-            self._last_warning[key] = now
+        if self._warnings.ready(key):
             self.get_logger().warning(text)
 
     # -- frames -------------------------------------------------------------------------

@@ -39,10 +39,10 @@ base_shift_correction and stop_pub_timeout are not supported.
 import math
 import re
 import sys
-import time
-from typing import Dict, List, Optional, Tuple
+from typing import List, Optional, Tuple
 
 from geometry_msgs.msg import Point32, PolygonStamped, Twist
+from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
@@ -164,7 +164,7 @@ class CollisionMonitorNode(Node):
             raise ValueError(f'parameter {error}') from None
         self.sources = [self._declare_source(name) for name in source_names]
         self.frames = TransformBuffer()
-        self._last_warning: Dict[str, float] = {}
+        self._warnings = KeyedThrottle(WARNING_PERIOD_S)
         self._last_state: Optional[Tuple[str, str]] = None
 
         self.cmd_pub = self.create_publisher(Twist, cmd_out, 10)
@@ -241,9 +241,7 @@ class CollisionMonitorNode(Node):
 
     def _warn(self, key: str, text: str) -> None:
         """Log a warning, at most once per WARNING_PERIOD_S for the same key."""
-        now = time.monotonic()
-        if now - self._last_warning.get(key, -math.inf) >= WARNING_PERIOD_S:
-            self._last_warning[key] = now
+        if self._warnings.ready(key):
             self.get_logger().warning(text)
 
     def _source_data(self, now_s: float) -> Tuple[List[SourceData], str, str]:

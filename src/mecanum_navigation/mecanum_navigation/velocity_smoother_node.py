@@ -23,10 +23,10 @@ is accepted only as false (Twist, not TwistStamped).
 from collections import deque
 import math
 import sys
-import time
-from typing import Deque, Dict, Optional, Tuple
+from typing import Deque, Optional, Tuple
 
 from geometry_msgs.msg import Twist
+from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
 from mecanum_control.robot_config import default_config_path, load_robot_config
@@ -72,7 +72,7 @@ class VelocitySmootherNode(Node):
                              'Twist) is supported')
         self.smoother = VelocitySmoother(params)
         self._odom: Deque[Tuple[float, Tuple[float, float, float]]] = deque()
-        self._last_warning: Dict[str, float] = {}
+        self._warnings = KeyedThrottle(WARNING_PERIOD_S)
 
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel_smoothed', 1)
         self.cmd_sub = self.create_subscription(Twist, 'cmd_vel', self.on_command, 1)
@@ -90,9 +90,7 @@ class VelocitySmootherNode(Node):
 
     def _warn(self, key: str, text: str) -> None:
         """Log a warning, at most once per WARNING_PERIOD_S for the same key."""
-        now = time.monotonic()
-        if now - self._last_warning.get(key, -math.inf) >= WARNING_PERIOD_S:
-            self._last_warning[key] = now
+        if self._warnings.ready(key):
             self.get_logger().warning(text)
 
     def on_command(self, msg: Twist) -> None:
