@@ -245,7 +245,8 @@ def ramp_step(current: Sequence[float], target: Sequence[float], acceleration: S
     current = np.asarray(current, dtype=np.float64)
     delta = np.asarray(target, dtype=np.float64) - current
     allowed = np.asarray(acceleration, dtype=np.float64) * dt_s
-    with np.errstate(divide='ignore', invalid='ignore'):
+    # np.where evaluates both branches: a tiny |delta| may overflow where it is not used.
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
         ratios = np.where(np.abs(delta) > allowed, allowed / np.abs(delta), 1.0)
     return current + float(np.min(ratios)) * delta
 
