@@ -191,12 +191,13 @@ class TestNode:
         self.node = rclpy.create_node('integration_test', context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self._closing = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
         self.clock_ns = 0
 
     def _spin(self):
-        while self.context.ok():
+        while self.context.ok() and not self._closing.is_set():
             try:
                 self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: B902 - shutting down mid-spin
@@ -255,10 +256,13 @@ class TestNode:
         return Recorder(self.node, msg_type, topic)
 
     def close(self):
+        # Stop spinning before destroying what the spin thread waits on (otherwise it
+        # may touch a destroyed guard condition while the context is still valid).
+        self._closing.set()
+        self._thread.join(timeout=5)
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=5)
 
 
 @pytest.fixture
