@@ -38,6 +38,7 @@ setup(
             'state_publisher = mecanum_description.state_publisher:main',
             'joint_state_publisher = mecanum_description.joint_state_publisher:main',
             'generate_meshes = mecanum_description.meshes:main',
+            'static_transform_publisher = mecanum_description.static_transform_publisher:main',
         ],
     },
 )

@@ -116,6 +116,8 @@ class _Link:
             return self.transforms[index]
         if index == 0:
             return self.transforms[0]
+        if index == len(times):  # within the 1 ns tolerance after the newest
+            return self.transforms[-1]
         before, after = times[index - 1], times[index]
         return self.transforms[index - 1].interpolate(
             self.transforms[index], (time_s - before) / (after - before))

@@ -74,6 +74,15 @@ def test_lookups_outside_the_known_times_fail_clearly():
     assert buffer.can_transform('odom', 'base_link', 1.5)
 
 
+def test_lookups_within_a_nanosecond_of_the_ends_are_the_end_transforms():
+    # The navigator died of an IndexError here: a time 0.5 ns after the newest stamp.
+    buffer = TransformBuffer()
+    buffer.set_transform('odom', 'base_link', PlanarTransform(1.0, 0.0, 0.0), 100.1)
+    buffer.set_transform('odom', 'base_link', PlanarTransform(2.0, 0.0, 0.0), 100.2)
+    assert buffer.lookup('odom', 'base_link', 100.2 + 5e-10).x == 2.0
+    assert buffer.lookup('odom', 'base_link', 100.1 - 5e-10).x == 1.0
+
+
 def test_unconnected_frames_name_what_is_known():
     buffer = TransformBuffer()
     buffer.set_transform('odom', 'base_link', IDENTITY, time_s=1.0)
