@@ -87,6 +87,8 @@ def write_launch(directory: Path, map_yaml: Path) -> Path:
         {'node': {'pkg': 'mecanum_navigation', 'exec': 'navigator', 'name': 'navigator',
                   'param': [
                       {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
+                      {'from': '$(find-pkg-share mecanum_navigation)/config/costmap_common.yaml'},
+                      {'from': '$(find-pkg-share mecanum_navigation)/config/planner_params.yaml'},
                       {'from': '$(find-pkg-share mecanum_navigation)/config/nav2_params.yaml'},
                       {'from': str(overrides)},
                       {'name': 'use_sim_time', 'value': True}]}},
@@ -329,7 +331,8 @@ def test_navigation_launch_file_describes_the_system():
     assert {'map_server', 'navigator', 'velocity_smoother', 'collision_monitor'} <= set(nodes)
     navigator = nodes['navigator']
     files = [source.name for source in navigator.parameters if isinstance(source, Path)]
-    assert files == ['motor_params.yaml', 'nav2_params.yaml']
+    assert files == ['motor_params.yaml', 'costmap_common.yaml', 'planner_params.yaml',
+                     'nav2_params.yaml']
     assert ('use_sim_time', True) in navigator.parameters
     assert system.arguments['map'] == 'apartment'
 

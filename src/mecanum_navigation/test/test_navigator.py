@@ -26,7 +26,7 @@ ROBOT = load_robot_config(default_config_path())
 PARAMS = ControllerParams.from_robot_config(ROBOT)
 RES = 0.05
 DT = PARAMS.control_period
-CONFIG = yaml.safe_load((Path(__file__).resolve().parents[1] / 'config/nav2_params.yaml')
+CONFIG = yaml.safe_load((Path(__file__).resolve().parents[1] / 'config/costmap_common.yaml')
                         .read_text())['navigator']['ros__parameters']
 PLANNER = GridPlanner()
 
@@ -274,7 +274,7 @@ def test_backup_direction_points_away_from_the_nearest_obstacle():
 
 def test_config_keeps_a_half_metre_gap_open_and_closes_0_4_m():
     """
-    nav2_params.yaml's inflation with the 0.2 m footprint radius, a wall with a gap.
+    costmap_common.yaml's inflation with the 0.2 m footprint radius, a wall with a gap.
 
     A 0.5 m gap (10 cells) in a one-cell wall: the gap cells 4 cells (0.2 m) or less
     from a wall end are inscribed (253), so the 5th and 6th stay free, each 0.25 m from
