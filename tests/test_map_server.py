@@ -2,7 +2,7 @@
 Integration: map_server publishes a Nav2 map on /map; map_saver_cli writes it back.
 
 Real processes in the test's own ROS domain; the round trip through DDS and the files
-must be lossless (trinary maps: free, occupied and unknown cells come back the same).
+must be lossless in every mode (trinary, scale and raw maps come back the same).
 """
 
 from pathlib import Path
@@ -10,7 +10,7 @@ import re
 import subprocess
 import time
 
-from mecanum_navigation.map_io import find_map_file, load_map
+from mecanum_navigation.map_io import find_map_file, load_map, OccupancyMap, save_map
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
@@ -49,6 +49,28 @@ def test_map_round_trip_through_server_and_saver(start_system, test_node, ros_en
     again = load_map(saved.with_suffix('.yaml'))
     assert np.array_equal(again.data, original.data)
     assert again.origin == pytest.approx(original.origin)
+
+
+@pytest.mark.parametrize('mode', ['scale', 'raw'])
+def test_scale_and_raw_maps_round_trip_through_server_and_saver(start_system, ros_env,
+                                                                tmp_path, mode):
+    """A map of every value the mode holds: file -> map_server -> DDS -> map_saver_cli."""
+    values = np.arange(101) if mode == 'scale' else np.arange(-1, 101)
+    data = np.resize(values, (40, 61)).astype(np.int8)
+    original = OccupancyMap(0.05, (-1.0, 0.5, 0.0), data)
+    save_map(original, tmp_path / 'source.yaml', mode=mode)
+    system = start_system('mecanum_navigation', 'map_server.launch.yaml',
+                          f'map:={tmp_path / "source.yaml"}')
+    system.wait_for_line(r'\[map_server\].*Serving map')
+    saved = tmp_path / 'saved'
+    result = subprocess.run(
+        ['./mecanum', 'run', 'mecanum_navigation', 'map_saver_cli', '-f', str(saved),
+         '--mode', mode],
+        env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
+    assert result.returncode == 0, result.stdout + result.stderr
+    again = load_map(saved.with_suffix('.yaml'))
+    assert np.array_equal(again.data, original.data)
+    assert (tmp_path / 'saved.pgm').read_bytes() == (tmp_path / 'source.pgm').read_bytes()
 
 
 def test_a_missing_map_stops_the_server_with_a_clear_message(ros_env):

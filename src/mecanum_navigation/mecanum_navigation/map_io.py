@@ -20,11 +20,24 @@ top row is the map's highest y: the rows are flipped when loading, so ``data[0]`
 BOTTOM row (ROS OccupancyGrid order). Only PGM images (P5 binary and P2 ASCII, maxval
 255) are read here; PNG and other formats raise MapError.
 
-Saving writes what map_saver writes in trinary mode: a P5 PGM with 254 for free (0..25),
-0 for occupied (65..100) and 205 for everything else, and a YAML with negate 0 and
-occupied_thresh 0.65. One deliberate difference: the YAML's free_thresh defaults to
-0.196 (ROS 1 map_saver's value) rather than Nav2's 0.25, because with 0.25 the unknown
-grey 205 (p = 50/255 = 0.196) loads back as FREE, in this module and in Nav2 alike.
+Saving writes a P5 PGM and a YAML with negate 0, as map_saver does, in one of the modes:
+
+- trinary (the default, map_saver's): 254 for free (0..rint(100 free_thresh)), 0 for
+  occupied (rint(100 occupied_thresh)..100) and 205 for everything else. free_thresh
+  defaults to 0.196 (ROS 1 map_saver's value) rather than Nav2's 0.25, because with 0.25
+  the unknown grey 205 (p = 50/255 = 0.196) loads back as FREE, in this module and in
+  Nav2 alike; when the given thresholds make a grey load as something else, the middle
+  grey of the right band is written instead (cells_to_pixels).
+- scale: for each value 0..100 the grey that loads back as that value with the written
+  thresholds (the thresholds are at least 0.0045 per value apart, so such a grey always
+  exists, see scale_pixel_table). A PGM has no alpha channel, which is how Nav2 marks
+  unknown cells in scale mode, so unknown cells are written 205 and come back as a value:
+  save_map refuses them unless allow_unknown_loss.
+- raw: the value itself as the grey (0..100), 255 for unknown.
+
+Round trips are lossless: loading what save_map wrote gives back the same cells in every
+mode, for all values the mode can hold (trinary: -1, 0 and 100; scale: 0..100; raw:
+-1..100); test_map_io checks each.
 
 Frames follow REP-103: x forward/east, y left/north, yaw counter-clockwise, metres and
 radians throughout.
@@ -203,13 +216,14 @@ def load_map(yaml_path: PathLike) -> OccupancyMap:
 
 def save_map(occupancy_map: OccupancyMap, yaml_path: PathLike, image_name: Optional[str] = None,
              occupied_thresh: float = SAVE_OCCUPIED_THRESH,
-             free_thresh: float = SAVE_FREE_THRESH) -> Path:
+             free_thresh: float = SAVE_FREE_THRESH, mode: str = 'trinary',
+             allow_unknown_loss: bool = False) -> Path:
     """
-    Write occupancy_map as map_saver does in trinary mode: a YAML and a P5 PGM beside it.
+    Write occupancy_map as map_saver does: a YAML and a P5 PGM beside it.
 
     image_name is the PGM's file name, written in the YAML's directory (default: the
-    YAML's stem + '.pgm'). Cells 0..rint(100 * free_thresh) become 254, cells
-    rint(100 * occupied_thresh)..100 become 0, all others 205. Returns the image path.
+    YAML's stem + '.pgm'). mode is 'trinary', 'scale' or 'raw' (module docstring).
+    Returns the image path.
     """
     yaml_path = Path(yaml_path)
     if image_name is None:
@@ -219,12 +233,35 @@ def save_map(occupancy_map: OccupancyMap, yaml_path: PathLike, image_name: Optio
     if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
         raise MapError(f'{yaml_path}: thresholds out of order: need 0 <= free_thresh '
                        f'{free_thresh} < occupied_thresh {occupied_thresh} <= 1')
-    pixels = cells_to_pixels(occupancy_map.data, occupied_thresh, free_thresh)
+    if mode not in MODES:
+        raise MapError(f'{yaml_path}: unknown map mode {mode!r} (expected one of '
+                       f'{", ".join(MODES)})')
+    if mode == 'trinary':
+        try:
+            pixels = cells_to_pixels(occupancy_map.data, occupied_thresh, free_thresh)
+        except ValueError as error:
+            raise MapError(f'{yaml_path}: {error}') from None
+    elif mode == 'raw':
+        values = np.asarray(occupancy_map.data).astype(np.int16)
+        pixels = np.where((values >= 0) & (values <= 100), values, 255).astype(np.uint8)
+    else:
+        values = np.asarray(occupancy_map.data).astype(np.int16)
+        unknown = (values < 0) | (values > 100)
+        if unknown.any() and not allow_unknown_loss:
+            raise MapError(f'{yaml_path}: {int(unknown.sum())} unknown cell(s) cannot be '
+                           'stored in a scale-mode PGM (it has no alpha channel); save in '
+                           'trinary or raw mode, or allow the loss')
+        try:
+            table = scale_pixel_table(occupied_thresh, free_thresh)
+        except ValueError as error:
+            raise MapError(f'{yaml_path}: {error}') from None
+        pixels = np.where(unknown, PIXEL_UNKNOWN, table[np.clip(values, 0, 100)])
+        pixels = pixels.astype(np.uint8)
     image_path = yaml_path.parent / image_name
     write_pgm(image_path, np.flipud(pixels))
     doc = {
         'image': image_name,
-        'mode': 'trinary',
+        'mode': mode,
         'resolution': occupancy_map.resolution_m,
         'origin': [float(v) for v in occupancy_map.origin],
         'negate': 0,
@@ -261,14 +298,54 @@ def pixels_to_cells(pixels: np.ndarray, mode: str = 'trinary', negate: bool = Fa
 
 def cells_to_pixels(cells: np.ndarray, occupied_thresh: float = SAVE_OCCUPIED_THRESH,
                     free_thresh: float = SAVE_FREE_THRESH) -> np.ndarray:
-    """Convert OccupancyGrid values to map_saver's trinary pixels (254, 0, 205); no flip."""
+    """
+    Convert OccupancyGrid values to trinary pixels; no flip.
+
+    map_saver's greys (254 free, 0 occupied, 205 unknown) where they load back as such
+    with these thresholds; otherwise the middle grey of the band that does (e.g. 205 is
+    free with free_thresh 0.25, so unknown is written as the grey of p = 0.45 then).
+    """
     values = np.asarray(cells).astype(np.int16)
     free_int = int(np.rint(free_thresh * 100.0))
     occupied_int = int(np.rint(occupied_thresh * 100.0))
-    pixels = np.full(values.shape, PIXEL_UNKNOWN, dtype=np.uint8)
-    pixels[(values >= 0) & (values <= free_int)] = PIXEL_FREE
-    pixels[(values >= occupied_int) & (values <= 100)] = PIXEL_OCCUPIED
+    loaded = pixels_to_cells(np.arange(256), 'trinary', False, occupied_thresh, free_thresh)
+    greys = {}
+    for value, usual in ((FREE, PIXEL_FREE), (OCCUPIED, PIXEL_OCCUPIED),
+                         (UNKNOWN, PIXEL_UNKNOWN)):
+        band = matches_of(loaded, value)
+        if band.size == 0:
+            raise ValueError(f'trinary mode cannot store {value} with thresholds free '
+                             f'{free_thresh}, occupied {occupied_thresh}')
+        greys[value] = usual if usual in band else band[band.size // 2]
+    pixels = np.full(values.shape, greys[UNKNOWN], dtype=np.uint8)
+    pixels[(values >= 0) & (values <= free_int)] = greys[FREE]
+    pixels[(values >= occupied_int) & (values <= 100)] = greys[OCCUPIED]
     return pixels
+
+
+def scale_pixel_table(occupied_thresh: float, free_thresh: float) -> np.ndarray:
+    """
+    Return, for each value 0..100, a grey that scale mode loads back as that value.
+
+    Raises ValueError when the thresholds are too close for 256 greys to hold 101 values.
+    """
+    greys = np.arange(256)
+    loaded = pixels_to_cells(greys, 'scale', False, occupied_thresh, free_thresh)
+    table = np.zeros(101, dtype=np.uint8)
+    for value in range(101):
+        matches = greys[loaded == value]
+        if matches.size == 0:
+            raise ValueError(f'scale mode cannot store the value {value} with thresholds '
+                             f'free {free_thresh}, occupied {occupied_thresh}: too close')
+        table[value] = matches[matches.size // 2]  # the middle of its band: robust
+    table[0] = PIXEL_FREE if PIXEL_FREE in matches_of(loaded, 0) else table[0]
+    table[100] = PIXEL_OCCUPIED if PIXEL_OCCUPIED in matches_of(loaded, 100) else table[100]
+    return table
+
+
+def matches_of(loaded: np.ndarray, value: int) -> np.ndarray:
+    """Return the greys (indices of loaded) that load as value."""
+    return np.flatnonzero(loaded == value)
 
 
 def read_pgm(path: PathLike) -> np.ndarray:

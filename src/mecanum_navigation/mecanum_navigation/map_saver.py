@@ -3,10 +3,14 @@ map_saver_cli: nav2_map_server's map saver for the pip setup.
 
 Waits for one nav_msgs/OccupancyGrid on ``--map-topic`` ('map'; transient local, so a
 map server's or SLAM's latched map arrives at once) and writes it as a Nav2 map,
-``NAME.yaml`` + ``NAME.pgm`` (``mecanum_navigation.map_io.save_map``, trinary, as
-map_saver writes it). Usage, as Nav2's::
+``NAME.yaml`` + ``NAME.pgm`` (``mecanum_navigation.map_io.save_map``, trinary by
+default, as map_saver writes it). Usage, as Nav2's::
 
-    map_saver_cli -f ~/maps/apartment [-t map] [--occ 0.65] [--free 0.196] [--timeout 10]
+    map_saver_cli -f ~/maps/apartment [-t map] [--mode trinary|scale|raw] [--occ 0.65]
+                  [--free 0.196] [--timeout 10]
+
+In scale mode unknown cells cannot be stored in a PGM; they are written as map_saver's
+grey 205 with a warning.
 
 The default free threshold is map_io's 0.196 rather than Nav2's 0.25, so that the
 unknown grey it writes loads back as unknown (see map_io).
@@ -21,7 +25,7 @@ import time
 
 from mecanum_navigation.grid_messages import occupancy_map
 from mecanum_navigation.map_io import (
-    MapError, SAVE_FREE_THRESH, save_map, SAVE_OCCUPIED_THRESH)
+    MapError, MODES, SAVE_FREE_THRESH, save_map, SAVE_OCCUPIED_THRESH)
 from nav_msgs.msg import OccupancyGrid
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -38,6 +42,8 @@ def main(args=None) -> int:
                         help=f'occupied threshold, 0..1 ({SAVE_OCCUPIED_THRESH})')
     parser.add_argument('--free', type=float, default=SAVE_FREE_THRESH,
                         help=f'free threshold, 0..1 ({SAVE_FREE_THRESH})')
+    parser.add_argument('--mode', choices=MODES, default='trinary',
+                        help='map mode: trinary (default), scale or raw')
     parser.add_argument('--timeout', type=float, default=10.0,
                         help='seconds to wait for a map (10)')
     options = parser.parse_args(argv)
@@ -63,8 +69,13 @@ def main(args=None) -> int:
         return 1
     yaml_path = Path(options.name).expanduser().with_suffix('.yaml')
     try:
-        save_map(occupancy_map(received[-1]), yaml_path,
-                 occupied_thresh=options.occ, free_thresh=options.free)
+        grid = occupancy_map(received[-1])
+        unknown = int((grid.data < 0).sum())
+        if options.mode == 'scale' and unknown:
+            logger.warning(f'{unknown} unknown cell(s) are written as grey 205 and load back '
+                           'as a scale value (a PGM has no alpha channel)')
+        save_map(grid, yaml_path, occupied_thresh=options.occ, free_thresh=options.free,
+                 mode=options.mode, allow_unknown_loss=True)
     except (MapError, OSError, ValueError) as error:
         logger.error(f'Could not save the map: {error}')
         return 1

@@ -63,7 +63,9 @@ def test_save_with_custom_image_name_and_intermediate_values(tmp_path):
     data = np.array([[1, 19, 20, 21, 64, 65, 99]], dtype=np.int8)
     save_map(OccupancyMap(0.1, (0.0, 0.0, 0.0), data), tmp_path / 'a.yaml', 'b.pgm',
              free_thresh=0.25)
-    assert read_pgm(tmp_path / 'b.pgm').tolist() == [[254, 254, 254, 254, 205, 0, 0]]
+    # With free_thresh 0.25 map_saver's grey 205 (p = 0.196) would load back as free:
+    # unknown is written as the middle of the unknown band, 141 (p = 114/255 = 0.447).
+    assert read_pgm(tmp_path / 'b.pgm').tolist() == [[254, 254, 254, 254, 141, 0, 0]]
     save_map(OccupancyMap(0.1, (0.0, 0.0, 0.0), data), tmp_path / 'c.yaml')
     # Default free_thresh 0.196 -> rint(19.6) = 20: 21 is no longer free.
     assert read_pgm(tmp_path / 'c.pgm').tolist() == [[254, 254, 254, 205, 205, 0, 0]]
@@ -110,6 +112,53 @@ def test_scale_and_raw_modes(tmp_path):
     assert scale.data.tolist() == [[62, 40, 100, 0]]
     raw = load_map(write_map(tmp_path, [[0, 37, 100, 101, 255]], mode='raw'))
     assert raw.data.tolist() == [[0, 37, 100, -1, -1]]
+
+
+@pytest.mark.parametrize('mode, values', [
+    ('trinary', [-1, 0, 100]),
+    ('scale', list(range(101))),
+    ('raw', [-1] + list(range(101))),
+])
+@pytest.mark.parametrize('thresholds', [(0.65, 0.196), (0.65, 0.25), (0.9, 0.1)])
+def test_save_then_load_is_lossless_in_every_mode(tmp_path, mode, values, thresholds):
+    """Every value a mode can hold comes back the same, with the saved thresholds."""
+    rng = np.random.default_rng(7)
+    data = rng.choice(values, size=(23, 131)).astype(np.int8)
+    data[0, :len(values)] = values  # each value at least once
+    original = OccupancyMap(0.05, (-1.25, 2.5, 0.0), data)
+    occupied, free = thresholds
+    save_map(original, tmp_path / 'm.yaml', mode=mode, occupied_thresh=occupied,
+             free_thresh=free)
+    assert yaml.safe_load((tmp_path / 'm.yaml').read_text())['mode'] == mode
+    loaded = load_map(tmp_path / 'm.yaml')
+    assert loaded.data.tolist() == original.data.tolist()
+    assert loaded.origin == original.origin and loaded.resolution_m == original.resolution_m
+    # Saving what was loaded writes the same image again.
+    first = (tmp_path / 'm.pgm').read_bytes()
+    save_map(loaded, tmp_path / 'again.yaml', mode=mode, occupied_thresh=occupied,
+             free_thresh=free)
+    assert (tmp_path / 'again.pgm').read_bytes() == first
+
+
+def test_scale_pixels_by_hand_and_its_limits(tmp_path):
+    """Value 0 and 100 are white and black; unknown cells need consent; tight thresholds fail."""
+    data = np.array([[0, 100, 50]], dtype=np.int8)
+    save_map(OccupancyMap(0.05, (0.0, 0.0, 0.0), data), tmp_path / 's.yaml', mode='scale',
+             occupied_thresh=0.65, free_thresh=0.25)
+    pixels = read_pgm(tmp_path / 's.pgm')
+    # 50 loads back from p in [0.448, 0.452): greys 255 (1 - p) = 139.7..140.8 -> 140.
+    assert pixels[0, 2] == 140
+    assert pixels[0, 0] > 255 * (1 - 0.25) and pixels[0, 1] < 255 * (1 - 0.65)
+    unknown = OccupancyMap(0.05, (0.0, 0.0, 0.0), np.array([[-1, 0]], dtype=np.int8))
+    with pytest.raises(MapError, match='unknown cell'):
+        save_map(unknown, tmp_path / 'u.yaml', mode='scale')
+    save_map(unknown, tmp_path / 'u.yaml', mode='scale', allow_unknown_loss=True)
+    assert read_pgm(tmp_path / 'u.pgm').tolist() == [[205, 254]]
+    with pytest.raises(MapError, match='too close'):
+        save_map(OccupancyMap(0.05, (0.0, 0.0, 0.0), data), tmp_path / 't.yaml',
+                 mode='scale', occupied_thresh=0.5, free_thresh=0.4)
+    with pytest.raises(MapError, match='unknown map mode'):
+        save_map(OccupancyMap(0.05, (0.0, 0.0, 0.0), data), tmp_path / 't.yaml', mode='gray')
 
 
 def test_ascii_p2_with_comments_matches_p5(tmp_path):
