@@ -18,7 +18,7 @@ from mecanum_bringup.isolation import isolated_environment, lease_domain_id
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 
 REPO = Path(__file__).resolve().parents[1]
@@ -137,11 +137,11 @@ def start_system(ros_env):
 class Recorder:
     """Collects messages of one topic from the test node."""
 
-    def __init__(self, node, msg_type, topic):
-        """Subscribe node to topic (reliable, depth 50)."""
+    def __init__(self, node, msg_type, topic, qos=50):
+        """Subscribe node to topic (reliable, depth 50, unless qos says otherwise)."""
         self.messages = []
         self._lock = threading.Lock()
-        node.create_subscription(msg_type, topic, self._on_message, 50)
+        node.create_subscription(msg_type, topic, self._on_message, qos)
 
     def _on_message(self, msg):
         with self._lock:
@@ -251,9 +251,12 @@ class TestNode:
             client.remove_pending_request(future)
             assert time.monotonic() < deadline, f'{client.srv_name} did not answer'
 
-    def record(self, msg_type, topic: str) -> 'Recorder':
-        """Start recording a topic."""
-        return Recorder(self.node, msg_type, topic)
+    def record(self, msg_type, topic: str, latched: bool = False) -> 'Recorder':
+        """Start recording a topic (latched: transient local, for latched topics)."""
+        qos = QoSProfile(depth=50)
+        if latched:
+            qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+        return Recorder(self.node, msg_type, topic, qos)
 
     def close(self):
         # Stop spinning before destroying what the spin thread waits on (otherwise it

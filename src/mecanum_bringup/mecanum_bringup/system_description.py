@@ -31,6 +31,8 @@ names the file and the entry, never silently ignored)::
         respawn: 'true'                   # optional
         respawn_delay: '2.0'              # optional, seconds
         on_exit: shutdown                 # optional: stop the whole system when it exits
+        if: $(var use_slam)               # optional on every entry but arg: skip it when
+                                          # false (unless: skip it when true)
         output: screen                    # accepted; output is always shown
         env: [{name: FOO, value: bar}]    # optional
 
@@ -411,6 +413,11 @@ class _Resolver:
             if not isinstance(body, dict):
                 raise SystemDescriptionError(f'{where}: "{kind}" must hold a mapping')
             where = f'{where} ({kind})'
+            if kind != 'arg' and ('if' in body or 'unless' in body):
+                body = dict(body)
+                if not self._condition(body.pop('if', None), body.pop('unless', None), scope,
+                                       where, path.parent):
+                    continue
             if kind == 'arg':
                 self._declare_argument(body, scope, where, path.parent)
             elif kind == 'let':
@@ -431,6 +438,18 @@ class _Resolver:
                 raise SystemDescriptionError(
                     f'{where}: unsupported entry "{kind}" (supported: arg, let, set_env, '
                     'include, node)')
+
+    def _condition(self, if_value: object, unless_value: object, scope: Dict[str, str],
+                   where: str, launch_dir: Path) -> bool:
+        """Evaluate an entry's ``if`` / ``unless`` (ROS launch's IfCondition / UnlessCondition)."""
+        run = True
+        if if_value is not None:
+            run = parse_bool(self.substitute(if_value, scope, where, launch_dir),
+                             f'{where}: "if"')
+        if unless_value is not None:
+            run = run and not parse_bool(self.substitute(unless_value, scope, where,
+                                                         launch_dir), f'{where}: "unless"')
+        return run
 
     @staticmethod
     def _required(body: dict, key: str, where: str) -> object:

@@ -169,6 +169,33 @@ def test_same_file_included_twice_side_by_side(tmp_path):
     assert [node.namespace for node in system.nodes] == ['r1', 'r2']
 
 
+def test_if_and_unless_choose_entries(tmp_path):
+    """ROS launch's if / unless on includes, nodes and set_env; arguments decide."""
+    write(tmp_path / 'part.launch.yaml', """
+        launch:
+        - node: {pkg: pkg_a, exec: included}
+        """)
+    path = write(tmp_path / 'top.launch.yaml', """
+        launch:
+        - arg: {name: slam, default: 'false'}
+        - include: {file: $(dirname)/part.launch.yaml, if: $(var slam)}
+        - node: {pkg: pkg_a, exec: amcl, unless: $(var slam)}
+        - node: {pkg: pkg_a, exec: slam, if: $(var slam)}
+        - node: {pkg: pkg_a, exec: both, if: 'true', unless: 'false'}
+        - set_env: {name: MODE, value: mapping, if: $(var slam)}
+        - node: {pkg: pkg_a, exec: env_check}
+        """)
+    system = load_system(path, {}, lambda name: '', environ={})
+    assert [node.executable for node in system.nodes] == ['amcl', 'both', 'env_check']
+    assert 'MODE' not in system.nodes[-1].env
+    system = load_system(path, {'slam': 'True'}, lambda name: '', environ={})
+    assert [node.executable for node in system.nodes] == ['included', 'slam', 'both',
+                                                          'env_check']
+    assert system.nodes[-1].env['MODE'] == 'mapping'
+    with pytest.raises(SystemDescriptionError, match='"if": expected true or false'):
+        load_system(path, {'slam': 'maybe'}, lambda name: '', environ={})
+
+
 @pytest.mark.parametrize('argv, expected', [
     ([], {}),
     (['a:=1', 'b_2:=x:=y', 'c:='], {'a': '1', 'b_2': 'x:=y', 'c': ''}),
