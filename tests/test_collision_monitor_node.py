@@ -191,11 +191,11 @@ def test_zones_sources_and_transforms(start_system, test_node):
             publishers.command = command
             settle(out, state, command, 'DO_NOTHING')
 
-        # A wall 0.21 m ahead, inside PolygonStop: zero out, whatever the direction
+        # A wall 0.205 m ahead, inside PolygonStop: zero out, whatever the direction
         # (Nav2's stop ignores the command's direction).
-        publishers.wall_m = 0.21
+        publishers.wall_m = 0.205
         for command in [(0.3, 0.0, 0.0), (-0.3, 0.0, 0.0)]:
-            assert expected_twist(command, 0.21).zone == 'PolygonStop'
+            assert expected_twist(command, 0.205).zone == 'PolygonStop'
             publishers.command = command
             settle(out, state, (0.0, 0.0, 0.0), 'STOP PolygonStop')
 

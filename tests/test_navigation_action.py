@@ -324,17 +324,16 @@ def test_navigate_cancel_preempt_and_goal_pose(navigation, test_node):
 
 
 def test_navigation_launch_file_describes_the_system():
-    """navigation.launch.yaml: map_server, navigator (robot + nav2 params), smoother, monitor."""
+    """navigation.launch.yaml: navigator (robot + nav2 params), smoother, monitor."""
     system = load_system(REPO / 'install/mecanum_navigation/share/mecanum_navigation/launch/'
                          'navigation.launch.py', {'use_sim_time': 'true'})
     nodes = {node.label: node for node in system.nodes}
-    assert {'map_server', 'navigator', 'velocity_smoother', 'collision_monitor'} <= set(nodes)
+    assert set(nodes) == {'navigator', 'velocity_smoother', 'collision_monitor'}
     navigator = nodes['navigator']
     files = [source.name for source in navigator.parameters if isinstance(source, Path)]
     assert files == ['motor_params.yaml', 'costmap_common.yaml', 'planner_params.yaml',
                      'nav2_params.yaml']
     assert ('use_sim_time', True) in navigator.parameters
-    assert system.arguments['map'] == 'apartment'
 
 
 @pytest.mark.parametrize('params, message', [

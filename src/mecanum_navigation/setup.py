@@ -40,6 +40,8 @@ setup(
             'navigator = mecanum_navigation.navigator_node:main',
             'velocity_smoother = mecanum_navigation.velocity_smoother_node:main',
             'collision_monitor = mecanum_navigation.collision_monitor_node:main',
+            'amcl = mecanum_navigation.amcl_node:main',
+            'slam = mecanum_navigation.slam_node:main',
         ],
     },
 )

@@ -1,0 +1,269 @@
+"""
+Integration: the amcl node localising the robot in the apartment, in real processes.
+
+The system (a launch file written here): map_server serving maps/apartment.yaml,
+robot_simulation's kinematic simulation_node (cmd_vel -> odom and odom -> base_link on
+/tf; its odom frame starts at the world's robot_start, so the truth is robot_start
+composed with its odometry: no slip) and amcl with config/amcl.yaml, all on sim time.
+The test node drives /clock, publishes the laser mount (motor_params.yaml) on /tf_static
+and, for every new odometry message (about every 0.1 s), a scan of robot_simulation's
+lidar in the apartment world taken at the true pose, stamped with the odometry's time.
+"""
+
+import math
+from pathlib import Path
+import re
+import subprocess
+import threading
+import time
+
+from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, TransformStamped, Twist
+from mecanum_bringup.system_description import load_system
+from mecanum_control.kinematics import quaternion_from_yaw, yaw_from_quaternion
+from mecanum_control.robot_config import default_config_path, load_robot_config
+from mecanum_localization.transforms import PlanarTransform, wrap_angle
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from robot_simulation.sensors import Lidar, LidarConfig
+from robot_simulation.world import find_world, load_world
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Empty
+from tf2_msgs.msg import TFMessage
+import yaml
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[1]
+AMCL_PARAMS = yaml.safe_load((REPO / 'src/mecanum_navigation/config/amcl.yaml').read_text())[
+    'amcl']['ros__parameters']
+ROBOT = load_robot_config(default_config_path())
+WORLD = load_world(find_world('apartment'))
+START = PlanarTransform(*WORLD.robot_start)
+
+
+def write_launch(directory: Path) -> Path:
+    """Write the test system: map_server, simulation_node, amcl (config/amcl.yaml)."""
+    launch = {'launch': [
+        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_server', 'name': 'map_server',
+                  'param': [{'name': 'yaml_filename', 'value': 'apartment'},
+                            {'name': 'use_sim_time', 'value': True}]}},
+        {'node': {'pkg': 'robot_simulation', 'exec': 'simulation_node',
+                  'name': 'robot_simulation',
+                  'param': [{'name': 'use_sim_time', 'value': True}]}},
+        {'node': {'pkg': 'mecanum_navigation', 'exec': 'amcl', 'name': 'amcl',
+                  'param': [
+                      {'from': '$(find-pkg-share mecanum_navigation)/config/amcl.yaml'},
+                      {'name': 'use_sim_time', 'value': True}]}},
+    ]}
+    path = directory / 'amcl_test.launch.yaml'
+    path.write_text(yaml.safe_dump(launch, sort_keys=False))
+    return path
+
+
+def odometry_pose(msg: Odometry) -> PlanarTransform:
+    """Return an Odometry message's planar pose."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    return PlanarTransform(p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+
+
+class LidarSimulator:
+    """Publishes, for each new odometry message, the scan seen from the true pose."""
+
+    def __init__(self, test_node, odometry):
+        """Build the lidar in the apartment world and start publishing."""
+        self.odometry = odometry
+        self.lidar = Lidar(LidarConfig(mount_x_m=ROBOT.lidar_mount_x_m,
+                                       mount_y_m=ROBOT.lidar_mount_y_m,
+                                       mount_yaw_rad=ROBOT.lidar_mount_yaw_rad),
+                           WORLD.segments, seed=0)
+        self.circles = np.array([(c.center[0], c.center[1], c.radius_m)
+                                 for c in WORLD.circles]).reshape(-1, 3)
+        self.publisher = test_node.node.create_publisher(LaserScan, 'scan', 10)
+        self.stop = threading.Event()
+        threading.Thread(target=self._run, daemon=True).start()
+
+    def _run(self):
+        last_stamp = None
+        while not self.stop.wait(0.1):
+            msg = self.odometry.latest()
+            if msg is None or msg.header.stamp == last_stamp:
+                continue
+            last_stamp = msg.header.stamp
+            truth = START.compose(odometry_pose(msg))
+            scan = LaserScan()
+            scan.header.stamp = msg.header.stamp
+            scan.header.frame_id = 'laser'
+            for name, value in self.lidar.scan_fields().items():
+                setattr(scan, name, value)
+            scan.ranges = self.lidar.scan(truth.x, truth.y, truth.yaw, self.circles).tolist()
+            try:
+                self.publisher.publish(scan)
+            except Exception:  # noqa: B902 - the test node shut down
+                return
+
+
+def initial_pose(x, y, yaw, variances):
+    """Return a PoseWithCovarianceStamped in map with x, y, yaw variances."""
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id = 'map'
+    msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+    q = msg.pose.pose.orientation
+    q.x, q.y, q.z, q.w = quaternion_from_yaw(yaw)
+    covariance = [0.0] * 36
+    covariance[0], covariance[7], covariance[35] = variances
+    msg.pose.covariance = covariance
+    return msg
+
+
+def wait_until(predicate, timeout=30.0, what='condition'):
+    """Poll predicate until it is true."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, f'{what}: not within {timeout} s'
+        time.sleep(0.02)
+
+
+def test_amcl_localises_the_robot_from_a_wrong_initial_pose(
+        start_system, test_node, tmp_path):
+    """
+    Nothing before an initial pose; from 0.5 m / 30 deg off, within 10 cm / 5 deg.
+
+    Then amcl_pose and particle_cloud are published, a NaN covariance is refused, and
+    reinitialize_global_localization spreads max_particles over the apartment.
+    """
+    test_node.start_clock()
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    static = test_node.node.create_publisher(TFMessage, '/tf_static', latched)
+    mount = TransformStamped()
+    mount.header.frame_id, mount.child_frame_id = 'base_link', 'laser'
+    mount.transform.translation.x = ROBOT.lidar_mount_x_m
+    mount.transform.translation.y = ROBOT.lidar_mount_y_m
+    r = mount.transform.rotation
+    r.x, r.y, r.z, r.w = quaternion_from_yaw(ROBOT.lidar_mount_yaw_rad)
+    static.publish(TFMessage(transforms=[mount]))
+    odometry = test_node.record(Odometry, 'odom')
+    poses = test_node.record(PoseWithCovarianceStamped, 'amcl_pose')
+    clouds = test_node.record(PoseArray, 'particle_cloud')
+    transforms = test_node.record(TFMessage, '/tf')
+    lidar = LidarSimulator(test_node, odometry)
+    initial_pub = test_node.node.create_publisher(PoseWithCovarianceStamped, 'initialpose', 10)
+    cmd_pub = test_node.node.create_publisher(Twist, 'cmd_vel', 10)
+    system = start_system(str(write_launch(tmp_path)))
+    try:
+        system.wait_for_line(r'\[amcl\].*Received a 220 x 180 map at 0.05 m/cell', 60.0)
+        system.wait_for_line(r'\[amcl\].*waiting for an initial pose on /initialpose', 30.0)
+
+        def map_to_odom():
+            for msg in reversed(list(transforms.since(0.0))):
+                for t in msg.transforms:
+                    if t.header.frame_id == 'map' and t.child_frame_id == 'odom':
+                        q = t.transform.rotation
+                        return PlanarTransform(t.transform.translation.x,
+                                               t.transform.translation.y,
+                                               yaw_from_quaternion(q.x, q.y, q.z, q.w))
+            return None
+
+        # Nav2: nothing before an initial pose.
+        assert poses.latest() is None and clouds.latest() is None and map_to_odom() is None
+
+        wait_until(lambda: initial_pub.get_subscription_count() > 0, what='amcl subscribed')
+        initial_pub.publish(initial_pose(3.0, 2.0, 0.0, (0.25, math.nan, 0.25)))
+        system.wait_for_line(r'\[amcl\].*WARN.*ignoring an initial pose: initial covariance '
+                             r'must be a finite 3x3 matrix')
+        guess = START.compose(PlanarTransform(0.5 * math.cos(2.0), 0.5 * math.sin(2.0),
+                                              math.radians(30.0)))
+        initial_pub.publish(initial_pose(guess.x, guess.y, guess.yaw,
+                                         (0.25, 0.25, math.radians(30.0) ** 2)))
+        system.wait_for_line(r'\[amcl\].*Setting pose: \(2\.7\d\d, 2\.4\d\d, 0\.524\) in map')
+        poses.wait_for(lambda msg: True, timeout=20.0)
+
+        def drive(vx, vy, wz, seconds):
+            end = test_node.clock_ns + int(seconds * 1e9)
+            while test_node.clock_ns < end:
+                twist = Twist()
+                twist.linear.x, twist.linear.y, twist.angular.z = vx, vy, wz
+                cmd_pub.publish(twist)
+                time.sleep(0.05)
+
+        drive(0.3, 0.0, 0.3, 3.0)
+        drive(0.0, 0.25, -0.3, 3.0)
+        drive(0.0, 0.0, 0.0, 1.0)     # stopped: the last scans republish map -> odom
+        odom = odometry_pose(odometry.latest())
+        truth = START.compose(odom)
+        assert math.hypot(truth.x - START.x, truth.y - START.y) > 0.8   # it did move
+        estimate = map_to_odom().compose(odom)
+        error_m = math.hypot(estimate.x - truth.x, estimate.y - truth.y)
+        error_deg = math.degrees(abs(wrap_angle(estimate.yaw - truth.yaw)))
+        print(f'amcl error: {error_m:.3f} m, {error_deg:.2f} deg')
+        assert error_m < 0.1 and error_deg < 5.0, (error_m, error_deg)
+
+        pose = poses.latest()
+        assert pose.header.frame_id == 'map'
+        p = pose.pose.pose.position
+        assert math.hypot(p.x - truth.x, p.y - truth.y) < 0.1 + AMCL_PARAMS['update_min_d']
+        covariance = np.array(pose.pose.covariance).reshape(6, 6)
+        assert np.isfinite(covariance).all()
+        assert 0.0 < covariance[0, 0] < 0.01 and 0.0 < covariance[5, 5] < 0.01
+        cloud = clouds.latest()
+        assert cloud.header.frame_id == 'map'
+        count = len(cloud.poses)
+        assert AMCL_PARAMS['min_particles'] <= count <= AMCL_PARAMS['max_particles']
+        xs = [q.position.x for q in cloud.poses]
+        assert max(xs) - min(xs) < 1.0
+
+        client = test_node.node.create_client(Empty, 'reinitialize_global_localization')
+        before = time.monotonic()
+        test_node.call(client, Empty.Request())
+        system.wait_for_line(r'\[amcl\].*Initializing with a uniform distribution of 2000')
+        wait_until(lambda: any(len(msg.poses) == AMCL_PARAMS['max_particles']
+                               for msg in clouds.since(before)), what='the spread particles')
+        spread = next(msg for msg in clouds.since(before)
+                      if len(msg.poses) == AMCL_PARAMS['max_particles'])
+        xs = [q.position.x for q in spread.poses]
+        ys = [q.position.y for q in spread.poses]
+        assert max(xs) - min(xs) > 8.0 and max(ys) - min(ys) > 6.0
+        assert system.stop() == 0
+        match = re.search(r'filter update: ([\d.]+) ms mean', system.output())
+        assert match, system.output()
+        print(f'amcl filter update (with publishing): {match.group(1)} ms mean')
+    finally:
+        lidar.stop.set()
+        print(system.output())   # shown by pytest when the test failed
+
+
+def test_localization_launch_file_describes_the_system():
+    """localization.launch.yaml: map_server with the map argument, amcl with amcl.yaml."""
+    system = load_system(REPO / 'install/mecanum_navigation/share/mecanum_navigation/launch/'
+                         'localization.launch.py', {'use_sim_time': 'true', 'map': 'lab_map'})
+    nodes = {node.label: node for node in system.nodes}
+    assert set(nodes) == {'map_server', 'amcl'}
+    amcl = nodes['amcl']
+    assert [s.name for s in amcl.parameters if isinstance(s, Path)] == ['amcl.yaml']
+    assert ('use_sim_time', True) in amcl.parameters
+    assert ('yaml_filename', 'lab_map') in nodes['map_server'].parameters
+
+
+@pytest.mark.parametrize('params, message', [
+    ({'robot_model_type': 'nav2_amcl::DifferentialMotionModel'},
+     r"parameter robot_model_type 'nav2_amcl::DifferentialMotionModel' is not supported: "
+     r'this is a mecanum \(omnidirectional\) robot'),
+    ({'min_particles': 600, 'max_particles': 500},
+     r'parameter max_particles must be >= min_particles \(600\), got 500'),
+    ({'laser_model_type': 'beam'}, r"parameter laser_model_type 'beam' is not supported"),
+    ({'alpha1': 'high'}, r"parameter alpha1 must be a number, got 'high'"),
+], ids=['differential_model', 'min_above_max_particles', 'beam_model', 'text_alpha'])
+def test_bad_parameters_stop_amcl_with_a_clear_message(ros_env, tmp_path, params, message):
+    """A bad value: one FATAL line naming the parameter, exit code 2, no traceback."""
+    params_file = tmp_path / 'params.yaml'
+    params_file.write_text(yaml.safe_dump({'amcl': {'ros__parameters': params}}))
+    result = subprocess.run(
+        ['./mecanum', 'run', 'mecanum_navigation', 'amcl', '--ros-args',
+         '--params-file', str(params_file)],
+        env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
+    output = result.stdout + result.stderr
+    assert result.returncode == 2, output
+    assert 'Traceback' not in output
+    assert len(re.findall(r'\[FATAL\]', output)) == 1, output
+    assert re.search(r'\[FATAL\].*' + message, output), output
