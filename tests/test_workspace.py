@@ -57,6 +57,23 @@ def test_every_system_description_resolves(launch_file):
     assert wrapper.exists() and launch_file.name in wrapper.read_text()
 
 
+@pytest.mark.parametrize('arguments, expected', [
+    ({}, {'simulator', 'map_server', 'amcl', 'navigator'}),
+    ({'slam': 'true'}, {'simulator', 'slam_toolbox', 'navigator'}),
+    ({'sim': 'false'}, {'hardware_interface', 'map_server', 'amcl', 'navigator'}),
+])
+def test_robot_launch_chooses_robot_and_localisation(arguments, expected):
+    """robot.launch.yaml: simulated or real robot, amcl on a map or SLAM, navigation."""
+    system = load_system(REPO / 'src/mecanum_bringup/launch/robot.launch.yaml', arguments)
+    labels = [node.label for node in system.nodes]
+    assert len(labels) == len(set(labels)), labels  # one map source, one of each node
+    assert expected <= set(labels)
+    for absent in {'simulator', 'map_server', 'amcl', 'slam_toolbox'} - expected:
+        assert absent not in labels
+    assert {'ekf_filter_node', 'robot_state_publisher', 'velocity_smoother',
+            'collision_monitor', 'motor_controller'} <= set(labels)
+
+
 def test_installed_executables_run_directly():
     """./mecanum run is the pip setup's `ros2 run`: it finds and starts the executable."""
     result = subprocess.run(
