@@ -32,7 +32,10 @@ How it works (a DWB-like sampler, vectorised with numpy: one array op over all s
    allow_unknown; otherwise the highest cost / 252 is added (not within
    near_goal_distance of the goal, as MPPI, so a goal in an inflated area is reached).
    Goal distance: from the trajectory's point at approach_time to the lookahead point
-   (lookahead_dist along the path from the robot's nearest path point, or the goal):
+   (lookahead_dist along the path from the robot's nearest path point, or the goal;
+   brought back along the path until the straight line to it stays out of inscribed
+   cells, so that around a tight corner the robot first drives to the corner instead
+   of stopping in front of the wall between it and a carrot beyond the corner):
    near the goal this makes the speed about distance / approach_time. Path distance:
    end and middle points to the path. Heading: end yaw to the heading target.
    Smoothness: change from the current twist.
@@ -60,6 +63,7 @@ from dataclasses import dataclass, field, fields
 import math
 from typing import Optional, Sequence, Tuple
 
+from mecanum_navigation.grid_search import BLOCKED, segment_cost
 import numpy as np
 
 Twist2D = Tuple[float, float, float]
@@ -527,7 +531,8 @@ class LocalController:
                 return self._brake(current, STATUS_GOAL_REACHED)
             return self._rotate_in_place(pose, current, yaw_error, costmap)
 
-        carrot, local_path, heading_target = self._follow_path(pose, points, goal_yaw)
+        carrot, local_path, heading_target = self._follow_path(pose, points, goal_yaw,
+                                                               costmap)
         self.last.carrot = (float(carrot[0]), float(carrot[1]))
         targets = self._sample_targets(pose, current, carrot, heading_target)
         xs, ys, yaws = simulate_trajectories(pose, current, targets, p.acceleration, p.sim_time,
@@ -600,9 +605,13 @@ class LocalController:
         self.last.trajectory = np.column_stack((xs[0], ys[0], yaws[0]))
         return self._command(current, target, STATUS_ROTATING)
 
-    def _follow_path(self, pose: np.ndarray, points: np.ndarray, goal_yaw: Optional[float]):
+    def _follow_path(self, pose: np.ndarray, points: np.ndarray, goal_yaw: Optional[float],
+                     costmap=None):
         """
         Prune the path at the robot and return (carrot, local path points, heading target).
+
+        The carrot is lookahead_dist ahead along the path, or the farthest point before
+        it that the robot sees along a straight line free of inscribed cells (costmap).
 
         The robot's nearest point is searched forward from the last one, within
         max_robot_pose_search_dist of path length, so a path that passes the same place
@@ -631,6 +640,9 @@ class LocalController:
             self._s_robot = s_robot
         remaining = total - s_robot
         s_carrot = min(s_robot + p.lookahead_dist, total)
+        if costmap is not None:
+            s_carrot = self._visible_arc_length(pose, points, cumulative, s_robot, s_carrot,
+                                                costmap)
         carrot = _point_at(points, cumulative, s_carrot)
         reach = p.sim_time * float(max(p.max_vel_x, p.max_vel_y))
         spacing = 0.05
@@ -650,6 +662,31 @@ class LocalController:
                 behind = _point_at(points, cumulative, max(s_carrot - 0.05, 0.0))
                 heading = math.atan2(ahead[1] - behind[1], ahead[0] - behind[0])
         return carrot, local_path, heading
+
+    def _visible_arc_length(self, pose: np.ndarray, points: np.ndarray,
+                            cumulative: np.ndarray, s_robot: float, s_carrot: float,
+                            costmap) -> float:
+        """
+        Return the largest arc length <= s_carrot whose path point the robot sees.
+
+        Seen: the straight segment from the robot to the point crosses no cell of cost
+        >= 253 (nor unknown, unless allow_unknown). Checked every cell length back to
+        s_robot; s_carrot itself when nothing is seen (e.g. the robot sits in an
+        inscribed cell: the critics then handle it).
+        """
+        step = float(costmap.resolution_m)
+        x0 = (float(pose[0]) - costmap.origin_x_m) / step
+        y0 = (float(pose[1]) - costmap.origin_y_m) / step
+        costs = costmap.costs
+        s = s_carrot
+        while s > s_robot:
+            point = _point_at(points, cumulative, s)
+            x1 = (float(point[0]) - costmap.origin_x_m) / step
+            y1 = (float(point[1]) - costmap.origin_y_m) / step
+            if segment_cost(costs, self.params.allow_unknown, x0, y0, x1, y1) != BLOCKED:
+                return s
+            s -= step
+        return s_carrot
 
     def _sample_targets(self, pose: np.ndarray, current: np.ndarray, carrot: np.ndarray,
                         heading_target: Optional[float]) -> np.ndarray:
