@@ -36,6 +36,8 @@ setup(
     entry_points={
         'console_scripts': [
             'launch_runner = mecanum_bringup.launch_runner:main',
+            'bag_recorder = mecanum_bringup.bag_recorder:main',
+            'foxglove_bridge = mecanum_bringup.foxglove_bridge:main',
         ],
     },
 )
