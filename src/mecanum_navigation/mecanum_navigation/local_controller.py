@@ -35,7 +35,9 @@ How it works (a DWB-like sampler, vectorised with numpy: one array op over all s
    (lookahead_dist along the path from the robot's nearest path point, or the goal;
    brought back along the path until the straight line to it stays out of inscribed
    cells, so that around a tight corner the robot first drives to the corner instead
-   of stopping in front of the wall between it and a carrot beyond the corner):
+   of stopping in front of the wall between it and a carrot beyond the corner; a path
+   point in an inscribed cell of this costmap is moved to the nearest free cell within
+   CARROT_SHIFT_M first, as the scan may put a wall a cell nearer than the map did):
    near the goal this makes the speed about distance / approach_time. Path distance:
    end and middle points to the path. Heading: end yaw to the heading target.
    Smoothness: change from the current twist.
@@ -68,6 +70,9 @@ import numpy as np
 
 Twist2D = Tuple[float, float, float]
 Pose2D = Tuple[float, float, float]
+
+#: How far (m) a carrot in an inscribed cell may be moved to a free one.
+CARROT_SHIFT_M = 0.1
 
 STATUS_FOLLOWING = 'following'
 STATUS_ROTATING = 'rotating_to_goal'
@@ -611,7 +616,8 @@ class LocalController:
         Prune the path at the robot and return (carrot, local path points, heading target).
 
         The carrot is lookahead_dist ahead along the path, or the farthest point before
-        it that the robot sees along a straight line free of inscribed cells (costmap).
+        it that the robot sees along a straight line free of inscribed cells (costmap;
+        see _visible_carrot).
 
         The robot's nearest point is searched forward from the last one, within
         max_robot_pose_search_dist of path length, so a path that passes the same place
@@ -640,10 +646,11 @@ class LocalController:
             self._s_robot = s_robot
         remaining = total - s_robot
         s_carrot = min(s_robot + p.lookahead_dist, total)
-        if costmap is not None:
-            s_carrot = self._visible_arc_length(pose, points, cumulative, s_robot, s_carrot,
-                                                costmap)
         carrot = _point_at(points, cumulative, s_carrot)
+        if costmap is not None:
+            visible = self._visible_carrot(pose, points, cumulative, s_robot, s_carrot,
+                                           costmap)
+            carrot = carrot if visible is None else visible
         reach = p.sim_time * float(max(p.max_vel_x, p.max_vel_y))
         spacing = 0.05
         s_local = np.arange(max(0.0, s_robot - 0.2), min(total, s_carrot + reach) + spacing,
@@ -663,30 +670,52 @@ class LocalController:
                 heading = math.atan2(ahead[1] - behind[1], ahead[0] - behind[0])
         return carrot, local_path, heading
 
-    def _visible_arc_length(self, pose: np.ndarray, points: np.ndarray,
-                            cumulative: np.ndarray, s_robot: float, s_carrot: float,
-                            costmap) -> float:
+    def _visible_carrot(self, pose: np.ndarray, points: np.ndarray, cumulative: np.ndarray,
+                        s_robot: float, s_carrot: float, costmap) -> Optional[np.ndarray]:
         """
-        Return the largest arc length <= s_carrot whose path point the robot sees.
+        Return the farthest path point up to s_carrot that the robot sees, or None.
 
         Seen: the straight segment from the robot to the point crosses no cell of cost
-        >= 253 (nor unknown, unless allow_unknown). Checked every cell length back to
-        s_robot; s_carrot itself when nothing is seen (e.g. the robot sits in an
-        inscribed cell: the critics then handle it).
+        >= 253 (nor unknown, unless allow_unknown). A point in such a cell (the global
+        plan hugs a corner the scan shows a cell nearer) is first moved to the nearest
+        cell within CARROT_SHIFT_M that is not and can be seen. Checked every cell length back to
+        s_robot; None when nothing is seen (e.g. the robot sits in an inscribed cell:
+        the critics then handle it).
         """
         step = float(costmap.resolution_m)
-        x0 = (float(pose[0]) - costmap.origin_x_m) / step
-        y0 = (float(pose[1]) - costmap.origin_y_m) / step
+        ox, oy = costmap.origin_x_m, costmap.origin_y_m
+        x0, y0 = (float(pose[0]) - ox) / step, (float(pose[1]) - oy) / step
         costs = costmap.costs
+        allow_unknown = self.params.allow_unknown
+        reach = int(math.ceil(CARROT_SHIFT_M / step))
+        offsets = [(dr, dc) for dr in range(-reach, reach + 1) for dc in range(-reach, reach + 1)
+                   if dr * dr + dc * dc <= reach * reach]
+        offsets.sort(key=lambda o: o[0] * o[0] + o[1] * o[1])
+        # A robot inside an inscribed cell (the scan shows a wall nearer than the map)
+        # sees past the blocked cells around it, then must have a free line.
+        start_blocked = segment_cost(costs, allow_unknown, x0, y0, x0, y0) == BLOCKED
         s = s_carrot
         while s > s_robot:
             point = _point_at(points, cumulative, s)
-            x1 = (float(point[0]) - costmap.origin_x_m) / step
-            y1 = (float(point[1]) - costmap.origin_y_m) / step
-            if segment_cost(costs, self.params.allow_unknown, x0, y0, x1, y1) != BLOCKED:
-                return s
+            x1, y1 = (float(point[0]) - ox) / step, (float(point[1]) - oy) / step
+            row, col = int(math.floor(y1)), int(math.floor(x1))
+            for dr, dc in offsets:
+                r, c = row + dr, col + dc
+                if not (0 <= r < costs.shape[0] and 0 <= c < costs.shape[1]):
+                    continue
+                if costs[r, c] >= 253 and not (allow_unknown and costs[r, c] == 255):
+                    continue
+                tx, ty = (x1, y1) if (dr, dc) == (0, 0) else (c + 0.5, r + 0.5)
+                if start_blocked:
+                    seen = _seen_leaving(costs, allow_unknown, x0, y0, tx, ty)
+                else:
+                    seen = segment_cost(costs, allow_unknown, x0, y0, tx, ty) != BLOCKED
+                if seen:
+                    return np.array([ox + tx * step, oy + ty * step])
+                if (dr, dc) == (0, 0):
+                    break   # a free path point in plain view or hidden: no shifting
             s -= step
-        return s_carrot
+        return None
 
     def _sample_targets(self, pose: np.ndarray, current: np.ndarray, carrot: np.ndarray,
                         heading_target: Optional[float]) -> np.ndarray:
@@ -796,6 +825,28 @@ def _distance_to_points(xs: np.ndarray, ys: np.ndarray, points: np.ndarray,
     dy *= dy
     d2 += dy
     return np.sqrt(np.min(d2, axis=1))
+
+
+def _seen_leaving(costs: np.ndarray, allow_unknown: bool, x0: float, y0: float, x1: float,
+                  y1: float) -> bool:
+    """
+    Tell whether a segment (cell coordinates) is free once it has left its blocked start.
+
+    Sampled every quarter cell: blocked cells at the start are skipped, then any blocked
+    (or off-grid) sample hides the end.
+    """
+    count = max(2, int(math.ceil(4.0 * math.hypot(x1 - x0, y1 - y0))) + 1)
+    xs = np.linspace(x0, x1, count)
+    ys = np.linspace(y0, y1, count)
+    cols, rows = np.floor(xs).astype(np.int64), np.floor(ys).astype(np.int64)
+    inside = (rows >= 0) & (cols >= 0) & (rows < costs.shape[0]) & (cols < costs.shape[1])
+    values = np.full(count, 255, dtype=np.int64)
+    values[inside] = costs[rows[inside], cols[inside]]
+    blocked = (values >= 253) & ~(allow_unknown & (values == 255)) | ~inside
+    free = np.flatnonzero(~blocked)
+    if free.size == 0:
+        return False
+    return not blocked[free[0]:].any()
 
 
 def _point_at(points: np.ndarray, cumulative: np.ndarray, s: float) -> np.ndarray:
