@@ -14,6 +14,9 @@ late, so the smallest offset would be too small), and it follows the crystals'
 drift. The stamps keep the board's exact spacing while the median holds, and move
 smoothly when it moves. The price is
 the median transport delay (about 1 ms on a serial link), which the stamps include.
+A board whose clock counts the host's own time (the simulated board counts simulated
+time, ``same_clock``) has an offset of a whole number of u32 wraps: the median is
+rounded to it, so stamps carry no transport delay at all.
 A board clock that goes back (the board restarted) or an offset that falls by more
 than ``reset_threshold_s`` (the host clock went back, e.g. simulated time restarted; a
 late sample only ever raises the offset) starts over.
@@ -30,7 +33,8 @@ U32 = 1 << 32
 class BoardClockSync:
     """Maps board microseconds (u32, wrapping) to host seconds."""
 
-    def __init__(self, window_samples: int = 400, reset_threshold_s: float = 1.0):
+    def __init__(self, window_samples: int = 400, reset_threshold_s: float = 1.0,
+                 same_clock: bool = False):
         if not (math.isfinite(reset_threshold_s) and reset_threshold_s > 0.0):
             raise ValueError('reset_threshold_s must be finite and > 0, got '
                              f'{reset_threshold_s}')
@@ -38,6 +42,7 @@ class BoardClockSync:
             raise ValueError(f'window_samples must be >= 1, got {window_samples}')
         self.window_samples = int(window_samples)
         self.reset_threshold_s = float(reset_threshold_s)
+        self.same_clock = bool(same_clock)
         self.resets = 0
         self._last_board_us: Optional[int] = None
         self._board_s = 0.0  # unwrapped board time of the last sample, s
@@ -50,9 +55,12 @@ class BoardClockSync:
         if not values:
             return 0.0
         middle = len(values) // 2
-        if len(values) % 2:
-            return values[middle]
-        return 0.5 * (values[middle - 1] + values[middle])
+        median = values[middle] if len(values) % 2 else 0.5 * (values[middle - 1]
+                                                               + values[middle])
+        if self.same_clock:
+            wrap_s = U32 * 1e-6
+            return round(median / wrap_s) * wrap_s
+        return median
 
     def stamp(self, board_time_us: int, host_now_s: float) -> float:
         """Return the host time (s) at which a sample taken at board_time_us was measured."""

@@ -131,6 +131,10 @@ class HardwareInterface(Node):
             raise ValueError(f"parameter link_clock must be 'steady' or 'ros', got {link_clock!r}")
         self._link_clock = (self.get_clock() if link_clock == 'ros'
                             else Clock(clock_type=ClockType.STEADY_TIME))
+        if self.board_clock is not None and link_clock == 'ros':
+            # The simulated board counts simulated time, the clock of this node: the
+            # offset is whole u32 wraps, so the stamps carry no transport delay.
+            self.board_clock.same_clock = True
         self.command_timer = self.create_timer(self.keepalive_s, self.on_command_timer,
                                                clock=self._link_clock)
         self.link_timer = self.create_timer(self.link_timeout_s / 4, self.check_link,

@@ -76,3 +76,16 @@ def test_a_host_clock_going_back_starts_over_but_a_late_sample_does_not():
 def test_bad_settings_are_refused(kwargs):
     with pytest.raises(ValueError):
         BoardClockSync(**kwargs)
+
+
+def test_a_board_on_the_host_clock_gets_no_transport_delay():
+    """The simulated board counts simulated time: stamps are its clock, wraps included."""
+    wrap_s = U32 * 1e-6
+    sync = BoardClockSync(same_clock=True)
+    # Received 30-70 ms late, with the host clock 2 wraps ahead of the u32 counter.
+    for i, late in enumerate((0.03, 0.05, 0.07, 0.04, 0.06)):
+        board_s = 10.0 + 0.01 * i
+        stamp = sync.stamp(int(round(board_s * 1e6)), 2 * wrap_s + board_s + late)
+        assert stamp == pytest.approx(2 * wrap_s + board_s, abs=1e-9)
+    median = BoardClockSync()
+    assert median.stamp(10_000_000, 10.05) == pytest.approx(10.05)  # the delay stays in
