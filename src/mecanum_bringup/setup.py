@@ -24,7 +24,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
-    ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml'),
+    ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml',
+              'scenarios/*.yaml'),
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
