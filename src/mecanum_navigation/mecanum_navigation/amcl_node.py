@@ -52,7 +52,7 @@ from mecanum_localization.transforms import (
 from mecanum_navigation.grid_messages import occupancy_map
 from mecanum_navigation.map_io import OccupancyMap
 from mecanum_navigation.particle_filter import (
-    AmclConfig, DEFAULT_INITIAL_COVARIANCE, LikelihoodField, ParticleFilter, ScanData)
+    AmclConfig, LikelihoodField, ParticleFilter, ScanData)
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
@@ -102,6 +102,14 @@ class AmclNode(Node):
         self.tf_broadcast = self._declare('tf_broadcast', True)
         set_initial_pose = self._declare('set_initial_pose', False)
         initial = [self._declare(f'initial_pose.{key}', 0.0) for key in ('x', 'y', 'z', 'yaw')]
+        # Not a nav2 parameter: the spread of set_initial_pose (standard deviations, m and
+        # rad); nav2's 0.5 m / pi/12 by default. A known start (a simulation's spawn) can
+        # be tighter, so the filter does not start with several clusters.
+        spread = [self._declare(f'initial_pose.{key}', default) for key, default in
+                  (('std_xy', 0.5), ('std_yaw', math.pi / 12.0))]
+        if not all(math.isfinite(v) and v > 0.0 for v in spread):
+            raise ValueError(f'parameters initial_pose.std_xy and std_yaw must be > 0, '
+                             f'got {spread}')
         scan_topic = self._declare('scan_topic', 'scan')
         map_topic = self._declare('map_topic', 'map')
         self.config = AmclConfig(**values)
@@ -109,7 +117,8 @@ class AmclNode(Node):
         if set_initial_pose:
             try:
                 self.filter.initialize((initial[0], initial[1], initial[3]),
-                                       DEFAULT_INITIAL_COVARIANCE)
+                                       np.diag([spread[0] ** 2, spread[0] ** 2,
+                                                spread[1] ** 2]))
             except ValueError as error:
                 raise ValueError(f'parameter initial_pose: {error}') from None
             self.get_logger().info(

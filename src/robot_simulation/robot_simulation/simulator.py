@@ -25,6 +25,10 @@ from robot_simulation.sensors import ImuConfig, ImuModel, Lidar, LidarConfig
 from robot_simulation.world import World
 
 
+#: How close (m, between the edges) a walking person comes to the robot before stopping.
+WALKER_GAP_M = 0.15
+
+
 @dataclass(frozen=True)
 class SimulatorConfig:
     """Rates and sensor models of a simulation run."""
@@ -113,17 +117,37 @@ class Simulation:
         self._circles = np.vstack([self._static_circles, np.array(
             [(0.0, 0.0, m.radius_m) for m in world.moving_obstacles]).reshape(-1, 3)])
         self._circles_time_s = None
+        # Each walker's own clock: it stops while the robot stands in its way.
+        self._walk_time_s = [0.0] * len(world.moving_obstacles)
 
     def step(self) -> None:
         """Advance one physics step with the board's current duties."""
         self.physics.step(self.board.apply_command_timeout(), self.dt_s, self.all_circles())
         self.steps += 1
         self.time_s = self.steps * self.dt_s
+        self._walk(self.dt_s)
         state = self.physics.state
         in_zone = self.world.in_test_zone(state.x, state.y)
         if self._in_zone and not in_zone:
             self.left_test_zone_count += 1
         self._in_zone = in_zone
+
+    def _walk(self, dt_s: float) -> None:
+        """
+        Move each walker on by dt_s unless that brings it nearer the robot than WALKER_GAP_M.
+
+        People in a home stop for a robot in their way rather than walk into it, so a
+        contact with a walker is the robot's doing (it drove into the person).
+        """
+        state = self.physics.state
+        robot = (state.x, state.y)
+        for index, mover in enumerate(self.world.moving_obstacles):
+            now = mover.position_at(self._walk_time_s[index])
+            ahead = mover.position_at(self._walk_time_s[index] + dt_s)
+            keep = mover.radius_m + self.robot.footprint_radius_m + WALKER_GAP_M
+            closer = math.dist(ahead, robot) < math.dist(now, robot)
+            if not (closer and math.dist(ahead, robot) < keep):
+                self._walk_time_s[index] += dt_s
 
     def moving_circles(self) -> np.ndarray:
         """Return the moving obstacles now, as rows (x, y, radius)."""
@@ -135,8 +159,8 @@ class Simulation:
         if self._circles_time_s != self.time_s:
             self._circles_time_s = self.time_s
             row = len(self._static_circles)
-            for mover in self.world.moving_obstacles:
-                circles[row, 0], circles[row, 1] = mover.position_at(self.time_s)
+            for mover, walk_time_s in zip(self.world.moving_obstacles, self._walk_time_s):
+                circles[row, 0], circles[row, 1] = mover.position_at(walk_time_s)
                 row += 1
         return circles
 

@@ -149,3 +149,32 @@ def test_floor_friction_must_be_a_non_negative_number():
     for value in (-0.1, math.nan, math.inf):
         with pytest.raises(ValueError, match='floor_friction_coefficient'):
             SimulatorConfig(floor_friction_coefficient=value)
+
+
+def test_a_walking_person_stops_for_the_robot_and_walks_on_after(tmp_path):
+    """A person walking at the standing robot stops 0.15 m short; away from it, walks on."""
+    path = tmp_path / 'walk.yaml'
+    path.write_text(textwrap.dedent("""
+        world:
+          name: walk
+          bounds_m: [0.0, 0.0, 6.0, 3.0]
+          moving_obstacles:
+          - {name: person, radius_m: 0.25, speed_m_s: 0.8, path: [[4.5, 1.5], [0.5, 1.5]],
+             loop: false}
+          robot_start: {x_m: 2.0, y_m: 0.5, yaw_deg: 0.0}
+        """))
+    sim = Simulation(load_world(path), ROBOT, quiet_config())
+    sim.physics.teleport(2.0, 1.5, 0.0)   # onto the way (a world file may not start there)
+    for _ in range(int(5.0 / sim.dt_s)):   # 5 s: unhindered it would pass x = 2.0
+        sim.step()
+    x, y, _ = sim.moving_circles()[0]
+    # Stops at the robot (x 2.0) + footprint 0.2 + gap 0.15 + radius 0.25 = 2.6, give or
+    # take one step of 0.8 m/s * 5 ms.
+    assert x == pytest.approx(2.0 + ROBOT.footprint_radius_m + 0.15 + 0.25, abs=0.005)
+    assert sim.collision_count == 0
+    # The person's way back (loop: false walks back) leads away from the robot: it goes.
+    other = Simulation(load_world(path), ROBOT, quiet_config())
+    other.physics.teleport(5.5, 1.5, 0.0)   # behind the person's start
+    for _ in range(int(3.0 / other.dt_s)):
+        other.step()
+    assert other.moving_circles()[0][0] == pytest.approx(4.5 - 0.8 * 3.0, abs=0.01)
