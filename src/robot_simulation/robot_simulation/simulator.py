@@ -27,6 +27,8 @@ from robot_simulation.world import World
 
 #: How close (m, between the edges) a walking person comes to the robot before stopping.
 WALKER_GAP_M = 0.15
+#: How long (s) a walking person waits for the robot before turning back.
+WALKER_PATIENCE_S = 3.0
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,8 @@ class Simulation:
         self._circles_time_s = None
         # Each walker's own clock: it stops while the robot stands in its way.
         self._walk_time_s = [0.0] * len(world.moving_obstacles)
+        self._walk_direction = [1.0] * len(world.moving_obstacles)
+        self._waited_s = [0.0] * len(world.moving_obstacles)
 
     def step(self) -> None:
         """Advance one physics step with the board's current duties."""
@@ -134,20 +138,34 @@ class Simulation:
 
     def _walk(self, dt_s: float) -> None:
         """
-        Move each walker on by dt_s unless that brings it nearer the robot than WALKER_GAP_M.
+        Move each walker on by dt_s unless the robot stands in its way, WALKER_GAP_M ahead.
 
         People in a home stop for a robot in their way rather than walk into it, so a
-        contact with a walker is the robot's doing (it drove into the person).
+        contact with a walker is the robot's doing (it drove into the person). In the
+        way: ahead of the walker and less than the two radii plus 5 cm off its line;
+        a robot beside the way does not stop it. After WALKER_PATIENCE_S of waiting the
+        walker turns back and walks its path the other way (no one waits for ever).
         """
         state = self.physics.state
-        robot = (state.x, state.y)
         for index, mover in enumerate(self.world.moving_obstacles):
+            step_s = dt_s * self._walk_direction[index]
             now = mover.position_at(self._walk_time_s[index])
-            ahead = mover.position_at(self._walk_time_s[index] + dt_s)
-            keep = mover.radius_m + self.robot.footprint_radius_m + WALKER_GAP_M
-            closer = math.dist(ahead, robot) < math.dist(now, robot)
-            if not (closer and math.dist(ahead, robot) < keep):
-                self._walk_time_s[index] += dt_s
+            ahead = mover.position_at(self._walk_time_s[index] + step_s)
+            step = math.dist(now, ahead)
+            contact = mover.radius_m + self.robot.footprint_radius_m
+            if step > 0.0:
+                dx, dy = (ahead[0] - now[0]) / step, (ahead[1] - now[1]) / step
+                rx, ry = state.x - now[0], state.y - now[1]
+                along, across = rx * dx + ry * dy, abs(rx * dy - ry * dx)
+                if (along > 0.0 and across < contact + 0.05
+                        and math.dist(ahead, (state.x, state.y)) < contact + WALKER_GAP_M):
+                    self._waited_s[index] += dt_s
+                    if self._waited_s[index] >= WALKER_PATIENCE_S:
+                        self._walk_direction[index] *= -1.0
+                        self._waited_s[index] = 0.0
+                    continue
+            self._waited_s[index] = 0.0
+            self._walk_time_s[index] += step_s
 
     def moving_circles(self) -> np.ndarray:
         """Return the moving obstacles now, as rows (x, y, radius)."""

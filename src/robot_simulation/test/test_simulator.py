@@ -165,13 +165,17 @@ def test_a_walking_person_stops_for_the_robot_and_walks_on_after(tmp_path):
         """))
     sim = Simulation(load_world(path), ROBOT, quiet_config())
     sim.physics.teleport(2.0, 1.5, 0.0)   # onto the way (a world file may not start there)
-    for _ in range(int(5.0 / sim.dt_s)):   # 5 s: unhindered it would pass x = 2.0
+    for _ in range(int(4.0 / sim.dt_s)):   # 4 s: it arrives after 2.4 s and waits
         sim.step()
     x, y, _ = sim.moving_circles()[0]
     # Stops at the robot (x 2.0) + footprint 0.2 + gap 0.15 + radius 0.25 = 2.6, give or
     # take one step of 0.8 m/s * 5 ms.
     assert x == pytest.approx(2.0 + ROBOT.footprint_radius_m + 0.15 + 0.25, abs=0.005)
     assert sim.collision_count == 0
+    # After 3 s of waiting it turns back toward x = 4.5.
+    for _ in range(int(2.5 / sim.dt_s)):
+        sim.step()
+    assert sim.moving_circles()[0][0] > 2.6 + 0.5
     # The person's way back (loop: false walks back) leads away from the robot: it goes.
     other = Simulation(load_world(path), ROBOT, quiet_config())
     other.physics.teleport(5.5, 1.5, 0.0)   # behind the person's start
