@@ -11,6 +11,8 @@ Publishes ``/clock`` (rosgraph_msgs/Clock, every ``clock_period_s`` of simulated
 time), ``scan`` (sensor_msgs/LaserScan in ``laser_frame_id``, REP-117: +inf no
 return), ``ground_truth/odom`` (nav_msgs/Odometry of base_link in the simulator's
 ``world_frame_id``; for evaluation only, never for the robot's own software) and
+``ground_truth/moving_obstacles`` (geometry_msgs/PoseArray: the walking people's centres,
+in the world order, with the ground truth; evaluation only),
 ``simulation/collisions`` (std_msgs/UInt32, transient local: the number of
 collisions so far) and, with ``publish_laser_tf`` (true), ``/tf_static`` base_link ->
 laser as mounted (until the robot description publishes it).
@@ -37,7 +39,7 @@ import sys
 import time
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from mecanum_control.board_emulator import BoardLink, PtyPort
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.messages import planar_odometry
@@ -120,6 +122,7 @@ class SimulatorNode(Node):
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
+        self.movers_pub = self.create_publisher(PoseArray, 'ground_truth/moving_obstacles', 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collision_pub = self.create_publisher(UInt32, 'simulation/collisions', latched)
         self.collision_pub.publish(UInt32(data=0))
@@ -194,6 +197,14 @@ class SimulatorNode(Node):
         msg = planar_odometry(stamp(now), self.world_frame_id, self.base_frame_id,
                               (state.x, state.y, state.yaw), (state.vx, state.vy, state.wz))
         self.truth_pub.publish(msg)
+        if self.sim.world.moving_obstacles:
+            movers = PoseArray()
+            movers.header = msg.header
+            for x, y, _ in self.sim.moving_circles():
+                pose = Pose()
+                pose.position.x, pose.position.y = float(x), float(y)
+                movers.poses.append(pose)
+            self.movers_pub.publish(movers)
 
     def run(self) -> None:
         """Step forever, paced to real_time_factor, serving ROS callbacks every 10 ms."""
