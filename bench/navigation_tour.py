@@ -39,7 +39,7 @@ def main() -> int:
             result = subprocess.run(
                 [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
                  'tests/test_navigation_tour.py'], cwd=REPO, capture_output=True, text=True,
-                env=dict(os.environ, MECANUM_TOUR_RESULTS=str(out)))
+                env=dict(os.environ, MECANUM_TOUR='1', MECANUM_TOUR_RESULTS=str(out)))
             wall_s = time.monotonic() - start
             data = json.loads(out.read_text()) if out.exists() else {'goals': []}
             data.update(passed=result.returncode == 0, wall_s=wall_s)
