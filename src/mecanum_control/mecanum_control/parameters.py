@@ -17,6 +17,30 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 
+def declare_typed(node: Node, name: str, default, kind: type = None):
+    """
+    Declare a parameter and return its value checked against the default's type.
+
+    kind (default: the default's type) is float, int, bool, str or list; an integer
+    value is taken for a float, a whole float for an int, None for an empty list.
+    Raises ValueError naming the parameter.
+    """
+    kind = kind or type(default)
+    value = node.declare_parameter(
+        name, default, ParameterDescriptor(dynamic_typing=True)).value
+    if kind is list:
+        return [] if value is None else list(value)
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if kind is int and isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        kinds = {float: 'a number', int: 'an integer', bool: 'true or false',
+                 str: 'a string'}
+        raise ValueError(f'parameter {name} must be {kinds[kind]}, got {value!r}')
+    return value
+
+
 def declare_robot_config(node: Node) -> RobotConfig:
     """Declare the motor_params.yaml parameters on node and return them validated."""
     defaults = parameters_from_yaml(default_config_path())

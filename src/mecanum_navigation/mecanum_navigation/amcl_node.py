@@ -46,6 +46,7 @@ from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped, Transf
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
+from mecanum_control.parameters import declare_typed
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import (
     PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
@@ -55,7 +56,6 @@ from mecanum_navigation.particle_filter import (
     AmclConfig, LikelihoodField, ParticleFilter, ScanData)
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import LaserScan
@@ -162,18 +162,7 @@ class AmclNode(Node):
 
     def _declare(self, name: str, default):
         """Declare a parameter and return its value checked against the default's type."""
-        kind = type(default)
-        value = self.declare_parameter(
-            name, default, ParameterDescriptor(dynamic_typing=True)).value
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if kind is int and isinstance(value, float) and value.is_integer():
-            value = int(value)
-        if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-            kinds = {float: 'a number', int: 'an integer', bool: 'true or false',
-                     str: 'a string'}
-            raise ValueError(f'parameter {name} must be {kinds[kind]}, got {value!r}')
-        return value
+        return declare_typed(self, name, default)
 
     def _frame(self, name: str, default: str) -> str:
         """Declare a frame parameter; it must not be empty."""

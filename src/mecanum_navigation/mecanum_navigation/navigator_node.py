@@ -44,7 +44,7 @@ from typing import Dict, Hashable, Optional
 from geometry_msgs.msg import PoseStamped, Twist
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_robot_config
+from mecanum_control.parameters import declare_robot_config, declare_typed
 from mecanum_interfaces.action import NavigateToPose
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import (
@@ -60,7 +60,6 @@ from mecanum_navigation.map_io import OccupancyMap
 from mecanum_navigation.planner import GridPlanner
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -189,20 +188,7 @@ class NavigatorNode(Node):
 
     def _declare(self, name: str, default, kind: type = None):
         """Declare a parameter and return its value checked against the default's type."""
-        kind = kind or type(default)
-        value = self.declare_parameter(
-            name, default, ParameterDescriptor(dynamic_typing=True)).value
-        if kind is list:
-            return [] if value is None else list(value)
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if kind is int and isinstance(value, float) and value.is_integer():
-            value = int(value)
-        if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-            kinds = {float: 'a number', int: 'an integer', bool: 'true or false',
-                     str: 'a string'}
-            raise ValueError(f'parameter {name} must be {kinds[kind]}, got {value!r}')
-        return value
+        return declare_typed(self, name, default, kind)
 
     def _controller_params(self, config, frequency: float) -> ControllerParams:
         """Read controller.* (defaults: the robot's limits) and check them against them."""
