@@ -332,6 +332,8 @@ class ObstacleLayer:
         self.track_unknown_space = track_unknown_space
         self.grid: Optional[Costmap2D] = None
         self._pending: List[Tuple[float, float, np.ndarray, np.ndarray]] = []
+        #: The marked returns (P x 2, this layer's frame) of the newest observation.
+        self.latest_points = np.zeros((0, 2))
 
     def add_points(self, sensor_x: float, sensor_y: float, points: np.ndarray,
                    free_directions: Optional[np.ndarray] = None) -> int:
@@ -398,11 +400,13 @@ class ObstacleLayer:
         ends = np.concatenate(((sensor_x, sensor_y) + offsets * scale[:, None],
                                (sensor_x, sensor_y) + free_units * free_length))
         self._pending.append((float(sensor_x), float(sensor_y), ends, marks))
+        self.latest_points = marks
 
     def clear(self) -> None:
         """Forget every mark and buffered observation."""
         self.grid = None
         self._pending = []
+        self.latest_points = np.zeros((0, 2))
 
     def update(self, costmap: Costmap2D) -> None:
         """Apply the buffered observations to the layer's grid and max it into costmap."""

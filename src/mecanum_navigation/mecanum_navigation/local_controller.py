@@ -73,6 +73,9 @@ Pose2D = Tuple[float, float, float]
 
 #: How far (m) a carrot in an inscribed cell may be moved to a free one.
 CARROT_SHIFT_M = 0.1
+#: Most trajectories checked together against the scan points (see _best_clear): the
+#: best alone first, then 8, then 64 at a time.
+CLEARANCE_BATCH = 64
 
 STATUS_FOLLOWING = 'following'
 STATUS_ROTATING = 'rotating_to_goal'
@@ -98,7 +101,10 @@ class ControllerParams:
     min_vel_x / min_vel_y default to -max_vel_x / -max_vel_y (a mecanum base backs up
     and strafes both ways). max_wheel_speed_m_s (wheel radius x top wheel speed) and
     rotation_arm_m (half wheelbase + half track) together bound the targets by the
-    wheels; None disables that bound. *_weight are the critics' weights.
+    wheels; None disables that bound. *_weight are the critics' weights. robot_radius
+    (the footprint circle) and collision_margin switch on the exact check against scan
+    points (compute_velocity's obstacle_points): the chosen trajectory keeps the circle
+    at least collision_margin from every point; None (no radius) disables it.
     """
 
     max_vel_x: float = 0.8
@@ -132,6 +138,8 @@ class ControllerParams:
     heading_weight: float = 0.4
     obstacle_weight: float = 0.4
     smoothness_weight: float = 0.05
+    robot_radius: Optional[float] = None
+    collision_margin: float = 0.02
 
     def __post_init__(self) -> None:
         """Validate every field (ValueError naming it) and fill the min_vel defaults."""
@@ -141,9 +149,12 @@ class ControllerParams:
                      'xy_goal_tolerance', 'approach_time',
                      'yaw_goal_tolerance', 'transform_tolerance'):
             _check_number(name, getattr(self, name), positive=True)
-        for name in ('max_wheel_speed_m_s', 'rotation_arm_m'):
+        for name in ('max_wheel_speed_m_s', 'rotation_arm_m', 'robot_radius'):
             if getattr(self, name) is not None:
                 _check_number(name, getattr(self, name), positive=True)
+        _check_number('collision_margin', self.collision_margin)
+        if self.collision_margin < 0.0:
+            raise ValueError(f'collision_margin must be >= 0 m, got {self.collision_margin!r}')
         if (self.max_wheel_speed_m_s is None) != (self.rotation_arm_m is None):
             raise ValueError('max_wheel_speed_m_s and rotation_arm_m must be given together '
                              f'(got {self.max_wheel_speed_m_s!r}, {self.rotation_arm_m!r})')
@@ -194,7 +205,8 @@ class ControllerParams:
             'acc_lim_theta': config.max_angular_acceleration_rad_s2,
             'max_wheel_speed_m_s': (config.max_wheel_speed_rad_s
                                     * config.geometry.wheel_radius_m),
-            'rotation_arm_m': config.geometry.rotation_arm_m}
+            'rotation_arm_m': config.geometry.rotation_arm_m,
+            'robot_radius': config.footprint_radius_m}
         unknown = set(overrides) - {f.name for f in fields(cls)}
         if unknown:
             raise ValueError(f'unknown controller parameters: {sorted(unknown)}')
@@ -480,6 +492,7 @@ class LocalController:
         periods = max(1, int(math.ceil(params.sim_time / params.control_period - 1e-9)))
         per_period = max(1, int(math.ceil(reach / params.sim_granularity / periods)))
         self._steps = periods * per_period
+        self._reach = reach
         self._approach_step = min(self._steps, max(1, int(round(
             params.approach_time / params.sim_time * self._steps)))) - 1
         self.last = ControllerDiagnostics()
@@ -498,7 +511,8 @@ class LocalController:
     # --- the cycle ------------------------------------------------------------------
 
     def compute_velocity(self, pose: Sequence[float], current_twist: Sequence[float],
-                         path, costmap, pose_age_s: float = 0.0) -> Tuple[Twist2D, str]:
+                         path, costmap, pose_age_s: float = 0.0,
+                         obstacle_points=None) -> Tuple[Twist2D, str]:
         """
         Return (twist, status) for the next control period (see the module docstring).
 
@@ -506,7 +520,9 @@ class LocalController:
         (odometry or the last command); path: (M, 2) points (x, y), or (M, 3) with the
         last row's yaw as the goal yaw (NaN: none), starting near the robot as a global
         plan does; costmap: an object with costs (uint8, row 0 = lowest y), origin_x_m,
-        origin_y_m, resolution_m, size_x, size_y; pose_age_s: how old the pose is.
+        origin_y_m, resolution_m, size_x, size_y; pose_age_s: how old the pose is;
+        obstacle_points: (P, 2) scan returns (x, y) in the costmap frame, for the exact
+        clearance check (see ControllerParams; rows with NaN/inf are ignored).
         Raises ValueError on a malformed or non-finite input.
         """
         p = self.params
@@ -515,6 +531,8 @@ class LocalController:
         _check_number('pose_age_s', pose_age_s)
         points, goal_yaw = _as_path(path)
         _check_costmap(costmap)
+        if obstacle_points is not None:
+            obstacle_points = _as_points('obstacle_points', obstacle_points)
         key = points.tobytes() + (b'' if goal_yaw is None else np.float64(goal_yaw).tobytes())
         if key != self._path_key:
             self.reset()
@@ -569,7 +587,10 @@ class LocalController:
             self._previous_target = None
             return self._brake(current, STATUS_NO_VALID_TRAJECTORY)
         scores = np.where(valid, scores, np.inf)
-        best = int(np.argmin(scores))
+        best = self._best_clear(scores, pose, xs, ys, obstacle_points)
+        if best is None:
+            self._previous_target = None
+            return self._brake(current, STATUS_NO_VALID_TRAJECTORY)
         self._previous_target = targets[best].copy()
         self.last.best_score = float(scores[best])
         self.last.trajectory = np.column_stack((xs[best], ys[best], yaws[best]))
@@ -775,6 +796,46 @@ class LocalController:
             limits.append(p.max_wheel_speed_m_s / (abs(direction[0]) + abs(direction[1])))
         return min(limits)
 
+    def _best_clear(self, scores: np.ndarray, pose: np.ndarray, xs: np.ndarray,
+                    ys: np.ndarray, points: Optional[np.ndarray]) -> Optional[int]:
+        """
+        Return the best-scored trajectory that keeps its clearance from points, or None.
+
+        The costmap check is only as exact as its cells (a cell centre 0.2 m from an
+        obstacle cell's centre may be 0.17 m from the obstacle itself). Here the
+        footprint circle (robot_radius) at every step must stay collision_margin from
+        every point (scan returns); a robot already nearer than that may move but not
+        get nearer. Trajectories are checked in score order, a batch at a time, so the
+        usual cost is the best one alone. Without points or robot_radius: the best score.
+        """
+        p = self.params
+        finite = np.isfinite(scores)
+        if not np.any(finite):
+            return None
+        if points is None or p.robot_radius is None:
+            return int(np.argmin(scores))
+        offsets = points - pose[:2]
+        distances = np.hypot(offsets[:, 0], offsets[:, 1])
+        near = points[distances <= self._reach + p.robot_radius + p.collision_margin]
+        if near.shape[0] == 0:
+            return int(np.argmin(scores))
+        required = min(p.collision_margin, float(np.min(distances)) - p.robot_radius - 1e-3)
+        limit = max(p.robot_radius + required, 0.0) ** 2
+        near_x = near[:, 0].astype(np.float32)
+        near_y = near[:, 1].astype(np.float32)
+        order = np.argsort(scores, kind='stable')[:int(np.count_nonzero(finite))]
+        start, size = 0, 1
+        while start < order.size:
+            batch = order[start:start + size]
+            start, size = start + size, min(CLEARANCE_BATCH, 8 * size)
+            dx = xs[batch][:, :, None] - near_x
+            dy = ys[batch][:, :, None] - near_y
+            closest = np.min(dx * dx + dy * dy, axis=(1, 2))
+            clear = closest >= limit
+            if np.any(clear):
+                return int(batch[int(np.argmax(clear))])
+        return None
+
     def _obstacle_critic(self, costmap, pose: np.ndarray, xs: np.ndarray,
                          ys: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """
@@ -876,6 +937,19 @@ def _as_vector(name: str, values) -> np.ndarray:
     if array.shape != (3,) or not np.all(np.isfinite(array)):
         raise ValueError(f'{name} must be 3 finite numbers, got {values!r}')
     return array
+
+
+def _as_points(name: str, values) -> np.ndarray:
+    """Return (P, 2) float64 points without the rows holding NaN/inf, or raise ValueError."""
+    try:
+        array = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be (P, 2) numbers (x, y)') from None
+    if array.size == 0:
+        return np.zeros((0, 2))
+    if array.ndim != 2 or array.shape[1] != 2:
+        raise ValueError(f'{name} must have shape (P, 2), got {array.shape}')
+    return array[np.all(np.isfinite(array), axis=1)]
 
 
 def _as_path(path) -> Tuple[np.ndarray, Optional[float]]:

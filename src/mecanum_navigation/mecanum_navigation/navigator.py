@@ -179,7 +179,8 @@ class TickInputs:
     unknown (pose_error says why); twist: the current body twist (None: the last
     command is used); pose_age_s: how old the odom pose is (the controller brakes when
     above its transform_tolerance); global_costmap: map frame, None before a map came;
-    local_costmap: odom frame.
+    local_costmap: odom frame; obstacle_points: (P, 2) returns of the newest scan in the
+    odom frame, for the controller's exact clearance check (None: cells only).
     """
 
     now_s: float
@@ -190,6 +191,7 @@ class TickInputs:
     twist: Optional[Twist2D] = None
     pose_age_s: float = 0.0
     pose_error: str = ''
+    obstacle_points: Optional[np.ndarray] = None
 
 
 @dataclass(frozen=True)
@@ -511,7 +513,8 @@ class Navigator:
         path = self._odom_path(map_to_odom)
         current = self._last_command if inputs.twist is None else tuple(inputs.twist)
         twist, status = self.controller.compute_velocity(
-            inputs.robot_in_odom, current, path, inputs.local_costmap, inputs.pose_age_s)
+            inputs.robot_in_odom, current, path, inputs.local_costmap, inputs.pose_age_s,
+            obstacle_points=inputs.obstacle_points)
         out.controller_status = status
         if status == STATUS_STALE_POSE:
             out.warnings.append('the robot pose (odom -> base_link) is older than '

@@ -78,7 +78,7 @@ CONTROLLER_KEYS = (
     'lookahead_dist', 'near_goal_distance', 'approach_time', 'max_robot_pose_search_dist',
     'xy_goal_tolerance', 'yaw_goal_tolerance', 'stateful', 'allow_unknown', 'heading_mode',
     'goal_dist_weight', 'path_dist_weight', 'heading_weight', 'obstacle_weight',
-    'smoothness_weight')
+    'smoothness_weight', 'collision_margin')
 #: controller.* velocity / acceleration limit -> the motor_params.yaml limit it may not exceed.
 ROBOT_LIMITS = {
     'max_vel_x': 'max_velocity_x_m_s', 'max_vel_y': 'max_velocity_y_m_s',
@@ -363,7 +363,7 @@ class NavigatorNode(Node):
             robot_in_odom=None if robot_in_odom is None else _pose(robot_in_odom),
             local_costmap=self.local_costmap.costmap, global_costmap=self.global_costmap,
             twist=self.odom_twist, pose_age_s=0.0 if fresh else 2.0 * self.transform_tolerance,
-            pose_error=error)
+            pose_error=error, obstacle_points=self.obstacle_layer.latest_points)
 
     # --- the control loop ----------------------------------------------------------
 

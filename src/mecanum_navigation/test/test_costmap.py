@@ -304,6 +304,19 @@ def test_obstacle_ranges_limit_marking_and_clearing():
     assert costmap.costs[0, :6].tolist() == [0, 0, 0, 0, 0, 254]
 
 
+def test_latest_points_are_the_newest_scans_marked_returns():
+    layer = ObstacleLayer(obstacle_max_range=3.0, obstacle_min_range=0.5)
+    assert layer.latest_points.shape == (0, 2)
+    layer.add_scan(1.0, 2.0, math.pi / 2, [1.0, 0.2, 4.0, math.inf], 0.0, math.pi / 2)
+    # Beams north, west, south, east from (1, 2): 1 m north is marked; 0.2 m (below
+    # obstacle_min_range), 4 m (beyond obstacle_max_range) and +inf are not.
+    assert np.allclose(layer.latest_points, [(1.0, 3.0)])
+    layer.add_points(0.0, 0.0, [(2.0, 0.0), (0.0, -1.5)])
+    assert np.allclose(layer.latest_points, [(2.0, 0.0), (0.0, -1.5)])
+    layer.clear()
+    assert layer.latest_points.shape == (0, 2)
+
+
 def test_scan_inf_nan_and_invalid_ranges():
     costmap = Costmap2D(10, 10, 1.0)
     layer = all_marked_layer(costmap, obstacle_max_range=2.5, raytrace_max_range=3.0)

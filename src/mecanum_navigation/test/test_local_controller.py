@@ -89,17 +89,19 @@ def box(grid_lethal, x0, y0, x1, y1, origin=(0.0, 0.0)):
 
 
 def drive(controller, grid, path, pose, twist=(0.0, 0.0, 0.0), cycles=200, substeps=5,
-          check=None):
+          check=None, points=None):
     """
     Run the controller in closed loop with perfect tracking; return (pose, log).
 
     Each command is held for one control period, integrated exactly in substeps; check
     (if given) is called with every intermediate pose. log holds (pose, twist, status).
+    points: obstacle points given to the controller every cycle.
     """
     dt = controller.params.control_period
     log = []
     for _ in range(cycles):
-        new_twist, status = controller.compute_velocity(pose, twist, path, grid)
+        new_twist, status = controller.compute_velocity(pose, twist, path, grid,
+                                                        obstacle_points=points)
         log.append((pose, new_twist, status))
         twist = new_twist
         if status in (STATUS_GOAL_REACHED, STATUS_NO_VALID_TRAJECTORY):
@@ -508,3 +510,92 @@ def test_a_tight_corner_is_driven_around_not_stopped_at():
     in_strip = [twist for p, twist, _ in log if p[1] > 7.45 and p[0] < 2.1]
     assert in_strip and max(abs(t[1]) for t in in_strip) > 0.3
     assert max(abs(t[0]) for t in in_strip) < 0.1
+
+
+def lane_around_a_corner():
+    """
+    Return a 0.6 m lane turning round a block's corner whose edges fall short of cell borders.
+
+    The block is x, y <= 1.049 m; the lane's outer walls are at x, y = 1.649 m. The
+    costmap (5 cm cells) marks the cells holding wall points lethal and measures the
+    inscribed radius between cell centres, so it thinks the block's edge is 2.4 cm
+    farther than it is. Returns (costmap grid, exact wall points (P, 2), path).
+    """
+    edge, outer, step = 1.049, 1.649, 0.005
+    along = np.arange(-1.0, outer + step, step)
+    walls = [np.column_stack((along[along <= edge], np.full((along <= edge).sum(), edge))),
+             np.column_stack((np.full((along <= edge).sum(), edge), along[along <= edge])),
+             np.column_stack((along, np.full(along.size, outer))),
+             np.column_stack((np.full(along.size, outer), along))]
+    points = np.vstack(walls)
+    cells = int(round(3.0 / RES))
+    lethal = np.zeros((cells, cells), dtype=bool)
+    origin = -1.0
+    cols = np.floor((points[:, 0] - origin) / RES).astype(int)
+    rows = np.floor((points[:, 1] - origin) / RES).astype(int)
+    inside = (rows >= 0) & (rows < cells) & (cols >= 0) & (cols < cells)
+    lethal[rows[inside], cols[inside]] = True
+    grid = Grid(inflate(lethal), RES, origin, origin)
+    lane = 0.5 * (edge + outer)
+    path = np.array([(lane, -0.6, math.pi / 2), (lane, lane, math.pi / 2),
+                     (-0.6, lane, math.pi / 2)])
+    return grid, points, path
+
+
+@pytest.mark.parametrize('exact', [False, True])
+def test_scan_points_keep_the_footprint_clear_where_cells_are_too_coarse(exact):
+    """
+    With the scan points the footprint keeps collision_margin from the block; without, not.
+
+    Costmap cells alone let the robot cut the corner nearer than robot_radius + margin
+    (the case that grazed the bed in the apartment tour): this half of the test shows
+    the coarse check is really that coarse, so the other half can fail.
+    """
+    grid, points, path = lane_around_a_corner()
+    params = ControllerParams.from_robot_config(ROBOT, max_vel_x=0.5, max_vel_y=0.4,
+                                                max_vel_theta=1.5)
+    closest = []
+
+    def check(pose):
+        closest.append(float(np.min(np.hypot(points[:, 0] - pose[0],
+                                             points[:, 1] - pose[1]))))
+    lane = path[1][0]
+    pose, log = drive(LocalController(params), grid, path, (lane, -0.6, math.pi / 2),
+                      cycles=400, check=check, points=points if exact else None)
+    assert log[-1][2] == STATUS_GOAL_REACHED
+    clearance = min(closest) - params.robot_radius
+    if exact:
+        assert clearance >= params.collision_margin - 1e-3, clearance
+    else:
+        assert clearance < params.collision_margin - 5e-3, clearance
+
+
+def test_scan_points_let_a_robot_already_too_near_move_away_but_not_nearer():
+    """0.005 m from a wall (inside the margin): it may leave, never approach the wall."""
+    params = ControllerParams.from_robot_config(ROBOT)
+    wall = np.column_stack((np.arange(-2.0, 2.0, 0.005), np.full(800, 0.0)))
+    pose = (0.0, params.robot_radius + 0.005, 0.0)
+    grid = empty_grid()
+    path = np.array([(0.0, pose[1], 0.0), (1.5, pose[1], 0.0)])
+    closest = []
+
+    def check(p):
+        closest.append(float(np.min(np.abs(wall[:, 1] - p[1]))))
+    _, log = drive(LocalController(params), grid, path, pose, cycles=60, check=check,
+                   points=wall)
+    assert all(status == STATUS_FOLLOWING for _, _, status in log[:10])
+    assert min(closest) >= params.robot_radius + 0.005 - 1e-3
+    assert log[-1][0][0] > 0.5   # and it did drive along
+
+
+def test_obstacle_points_must_be_pairs():
+    """A malformed points array is a clear ValueError; rows with NaN are dropped."""
+    controller = LocalController(PARAMS)
+    path = [(0.0, 0.0), (1.0, 0.0)]
+    with pytest.raises(ValueError, match='obstacle_points must have shape'):
+        controller.compute_velocity((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), path, empty_grid(),
+                                    obstacle_points=np.zeros((3, 3)))
+    twist, status = controller.compute_velocity(
+        (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), path, empty_grid(),
+        obstacle_points=[(math.nan, 0.1), (5.0, 5.0)])
+    assert status == STATUS_FOLLOWING and twist[0] > 0.0

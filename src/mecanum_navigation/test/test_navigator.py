@@ -69,7 +69,8 @@ ZONE = ((0.0, 0.0), (3.9, 0.0), (3.9, 2.5), (0.0, 2.5))
 class BoxedInController(LocalController):
     """A controller that never finds a valid trajectory (the robot is boxed in)."""
 
-    def compute_velocity(self, pose, current_twist, path, costmap, pose_age_s=0.0):
+    def compute_velocity(self, pose, current_twist, path, costmap, pose_age_s=0.0,
+                         obstacle_points=None):
         """Brake and report no_valid_trajectory."""
         return ZERO_TWIST, STATUS_NO_VALID_TRAJECTORY
 
@@ -77,10 +78,12 @@ class BoxedInController(LocalController):
 class RecordingController(LocalController):
     """The real controller, remembering the inputs of its last call."""
 
-    def compute_velocity(self, pose, current_twist, path, costmap, pose_age_s=0.0):
+    def compute_velocity(self, pose, current_twist, path, costmap, pose_age_s=0.0,
+                         obstacle_points=None):
         """Record the arguments, then compute as LocalController does."""
         self.seen = (tuple(pose), np.array(path, dtype=float))
-        return super().compute_velocity(pose, current_twist, path, costmap, pose_age_s)
+        return super().compute_velocity(pose, current_twist, path, costmap, pose_age_s,
+                                        obstacle_points=obstacle_points)
 
 
 class World:
