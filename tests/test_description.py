@@ -86,15 +86,15 @@ def test_description_and_fixed_frames_are_latched(description):
     statics = latched(test_node, TFMessage, '/tf_static')
     text = wait_until(lambda: descriptions and descriptions[0].data, '/robot_description')
     model = parse_urdf(text)
-    assert model.name == 'mecanum_robot' and model.root == 'base_footprint'
+    assert model.name == 'mecanum_robot' and model.root == 'base_link'
     assert [j.name for j in model.moving_joints()] == [FL, FR, RL, RR]
 
     # Every fixed joint in one message.
     static = wait_until(lambda: statics and statics[0], '/tf_static')
     frames = by_child(static)
-    assert set(frames) == {'base_link', 'laser', 'imu_link'}
-    assert frames['base_link'].header.frame_id == 'base_footprint'
-    assert xyz(frames['base_link']) == pytest.approx((0, 0, R))
+    assert set(frames) == {'base_footprint', 'laser', 'imu_link'}
+    assert frames['base_footprint'].header.frame_id == 'base_link'
+    assert xyz(frames['base_footprint']) == pytest.approx((0, 0, -R))
     assert frames['laser'].header.frame_id == 'base_link'
     assert xyz(frames['laser']) == pytest.approx(
         (CONFIG.lidar_mount_x_m, CONFIG.lidar_mount_y_m, CONFIG.lidar_mount_z_m))

@@ -62,7 +62,7 @@ def test_frames_are_complete_and_the_ekf_keeps_the_heading_when_wheels_slip(
     # The description alone publishes the mounts, once each, as configured.
     transforms = [t for m in static for t in m.transforms]
     pairs = [(t.header.frame_id, t.child_frame_id) for t in transforms]
-    for pair in [('base_footprint', 'base_link'), ('base_link', 'laser'),
+    for pair in [('base_link', 'base_footprint'), ('base_link', 'laser'),
                  ('base_link', 'imu_link')]:
         assert pairs.count(pair) == 1, pairs
     laser = transforms[pairs.index(('base_link', 'laser'))].transform.translation

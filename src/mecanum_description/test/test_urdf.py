@@ -47,7 +47,8 @@ def point_in(model, link, point, positions=None, base=None):
 
 
 def test_every_frame_the_nodes_use_exists(model):
-    assert model.root == 'base_footprint'
+    # base_link is the root: the EKF publishes odom -> base_link, and a frame has one parent.
+    assert model.root == 'base_link'
     for frame in ['base_footprint', 'base_link', 'laser', 'imu_link'] + WHEELS:
         assert frame in model.links, frame
 
@@ -65,11 +66,12 @@ def test_wheel_joints_are_the_configured_ones_in_order(model):
     ('front_left_wheel_link', 1, 1), ('front_right_wheel_link', 1, -1),
     ('rear_left_wheel_link', -1, 1), ('rear_right_wheel_link', -1, -1)])
 def test_wheels_sit_at_their_corners_at_axle_height(model, link, x_sign, y_sign):
-    pose = model.link_pose(link)            # in base_footprint
-    assert pose.translation == pytest.approx((x_sign * LX, y_sign * LY, R), abs=1e-12)
+    pose = model.link_pose(link)            # in base_link, at axle height
+    assert pose.translation == pytest.approx((x_sign * LX, y_sign * LY, 0.0), abs=1e-12)
     assert pose.rotation == pytest.approx((0, 0, 0, 1))
-    # The wheel's lowest point touches the ground.
-    assert point_in(model, link, (0, 0, -R))[2] == pytest.approx(0.0, abs=1e-12)
+    # The wheel's lowest point touches the ground (base_footprint's height).
+    ground = model.link_pose('base_footprint').translation[2]
+    assert point_in(model, link, (0, 0, -R))[2] == pytest.approx(ground, abs=1e-12)
 
 
 @pytest.mark.parametrize('joint, link', [
@@ -83,9 +85,10 @@ def test_a_positive_wheel_angle_rolls_forward(model, joint, link):
     assert np.subtract(top, centre) == pytest.approx((R, 0, 0), abs=1e-12)
 
 
-def test_base_link_is_at_axle_height(model):
-    pose = model.link_pose('base_link')
-    assert pose.translation == pytest.approx((0, 0, R))
+def test_base_footprint_is_on_the_ground_below_base_link(model):
+    pose = model.link_pose('base_footprint')
+    assert pose.parent == 'base_link'
+    assert pose.translation == pytest.approx((0, 0, -R))
     assert pose.rotation == (0, 0, 0, 1)
 
 
@@ -169,7 +172,8 @@ def test_geometry_follows_the_config_file(tmp_path):
     config.write_text(yaml.safe_dump(document))
     model = parse_urdf(process(config=str(config)))
     assert model.link_pose('rear_right_wheel_link').translation == \
-        pytest.approx((-0.2, -0.15, 0.05))
+        pytest.approx((-0.2, -0.15, 0.0))
+    assert model.link_pose('base_footprint').translation == pytest.approx((0, 0, -0.05))
     laser = model.link_pose('laser', base='base_link')
     assert laser.translation[0] == pytest.approx(-0.03)
     assert laser.rotation == pytest.approx((0, 0, math.sqrt(0.5), math.sqrt(0.5)))
