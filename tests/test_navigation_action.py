@@ -109,14 +109,39 @@ def transform(parent, child, x, y, yaw):
 
 
 class Scanner:
-    """Publishes empty scans (+inf: no return) from the laser at 10 Hz on the test clock."""
+    """
+    Publishes scans from the laser at 10 Hz on the test clock: +inf (nothing seen) ...
+
+    ... except the circles in `circles` ((x, y, radius) in map, which the map lacks, like
+    a person), seen from the robot's pose that `robot` (a function, map frame) gives.
+    """
 
     def __init__(self, test_node):
         """Create the publisher and start publishing."""
         self.test_node = test_node
         self.publisher = test_node.node.create_publisher(LaserScan, 'scan', 10)
         self.stop = threading.Event()
+        self.circles = []
+        self.robot = None
         threading.Thread(target=self._run, daemon=True).start()
+
+    def ranges(self, angles):
+        """Return the ranges (m) to the circles along the beams (laser frame angles)."""
+        ranges = np.full(angles.size, math.inf)
+        if not self.circles or self.robot is None:
+            return ranges
+        x, y, yaw = self.robot()
+        laser = PlanarTransform(x, y, yaw).compose(PlanarTransform(
+            ROBOT.lidar_mount_x_m, ROBOT.lidar_mount_y_m, ROBOT.lidar_mount_yaw_rad))
+        dx, dy = np.cos(angles + laser.yaw), np.sin(angles + laser.yaw)
+        for cx, cy, radius in self.circles:
+            ox, oy = cx - laser.x, cy - laser.y
+            along = dx * ox + dy * oy
+            across2 = ox * ox + oy * oy - along ** 2
+            hit = (along > 0.0) & (across2 <= radius ** 2)
+            distance = along - np.sqrt(np.maximum(radius ** 2 - across2, 0.0))
+            ranges = np.where(hit & (distance < ranges), distance, ranges)
+        return ranges
 
     def _run(self):
         while not self.stop.wait(0.1):
@@ -127,7 +152,11 @@ class Scanner:
             msg.angle_min, msg.angle_max = -math.pi, math.pi - 2 * math.pi / 360
             msg.angle_increment = 2 * math.pi / 360
             msg.range_min, msg.range_max = 0.1, 8.0
-            msg.ranges = [math.inf] * 360
+            angles = msg.angle_min + msg.angle_increment * np.arange(360)
+            try:
+                msg.ranges = self.ranges(angles).tolist()
+            except AssertionError:   # no odometry yet
+                msg.ranges = [math.inf] * 360
             try:
                 self.publisher.publish(msg)
             except Exception:  # noqa: B902 - the test node shut down
@@ -225,6 +254,8 @@ def navigation(start_system, test_node, tmp_path):
     navigation = Navigation(test_node)
     assert navigation.client.wait_for_server(timeout_sec=20.0)
     navigation.odom.wait_for(lambda msg: True)
+    scanner.robot = navigation.robot
+    navigation.scanner = scanner
     yield system, navigation
     scanner.stop.set()
     del static
@@ -321,6 +352,36 @@ def test_navigate_cancel_preempt_and_goal_pose(navigation, test_node):
     assert math.hypot(x - 2.0, y - 2.0) <= XY_TOLERANCE + 0.02
     assert abs(wrap_angle(yaw)) <= YAW_TOLERANCE + 0.02
     assert system.stop() == 0
+
+
+def test_the_plan_goes_round_an_obstacle_the_map_lacks(navigation, test_node):
+    """
+    A person-sized circle the map lacks stands on the straight line to the goal.
+
+    The global costmap's obstacle layer adds it from the scan, so the plan (and the
+    robot) go round it with the footprint clear of it, and the goal is reached.
+    """
+    system, nav = navigation
+    plans = test_node.record(PathMsg, 'plan')
+    costmaps = test_node.record(OccupancyGrid, 'global_costmap/costmap')
+    person = (1.8, 1.0, 0.25)
+    nav.scanner.circles = [person]
+    # The scan sees its near side (x 1.55..1.8 on the row y = 1): marked lethal (100).
+    row = round(1.0 / RES)
+    costmaps.wait_for_new(lambda msg: 100 in msg.data[row * msg.info.width + round(1.5 / RES):
+                                                      row * msg.info.width + round(1.8 / RES)],
+                          timeout=20.0)
+    handle, feedback, result_future = nav.send(2.6, 1.0, 0.0)
+    closest = []
+    while not result_future.done():
+        x, y, _ = nav.robot()
+        closest.append(math.dist((x, y), person[:2]))
+        time.sleep(0.02)
+    response = result_future.result()
+    assert response.result.error_code == R.NONE, response.result.error_msg
+    plan = np.array([(p.pose.position.x, p.pose.position.y) for p in plans.latest().poses])
+    assert np.min(np.hypot(plan[:, 0] - 1.8, plan[:, 1] - 1.0)) > person[2] + 0.2
+    assert min(closest) > person[2] + ROBOT.footprint_radius_m
 
 
 def test_navigation_launch_file_describes_the_system():

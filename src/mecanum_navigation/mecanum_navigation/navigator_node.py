@@ -9,15 +9,18 @@ Action server ``navigate_to_pose`` (mecanum_interfaces/NavigateToPose: nav2_msgs
 this project's error codes). Subscribes ``goal_pose`` (geometry_msgs/PoseStamped, what
 RViz's "2D Goal Pose" sends: a navigation without an action client, its end is logged),
 ``map`` (nav_msgs/OccupancyGrid, transient local) for the global costmap (static layer,
-``keepout_zones``, inflation with the inscribed radius footprint_radius_m of
-motor_params.yaml), ``scan`` (sensor_msgs/LaserScan, sensor-data QoS) for the local
-costmap (rolling window in ``odom_frame`` with obstacle and inflation layers; the laser's
-pose from TF), ``odom_topic`` (nav_msgs/Odometry, default 'odometry/filtered': the body
-twist for the controller), ``/tf`` and ``/tf_static`` (map -> odom -> base_link).
+``keepout_zones``, an obstacle layer from the scan unless ``global_costmap.obstacle_layer``
+is false, inflation with the inscribed radius footprint_radius_m of motor_params.yaml;
+rebuilt at ``global_costmap.update_frequency``, so replanning goes round people and
+furniture the map lacks, as Nav2's default global costmap), ``scan``
+(sensor_msgs/LaserScan, sensor-data QoS) for both costmaps (the local one a rolling
+window in ``odom_frame`` with obstacle and inflation layers; the laser's pose from TF),
+``odom_topic`` (nav_msgs/Odometry, default 'odometry/filtered': the body twist for the
+controller), ``/tf`` and ``/tf_static`` (map -> odom -> base_link).
 Publishes ``cmd_vel_nav`` (geometry_msgs/Twist in base_link: Nav2's controller output,
 for velocity_smoother; zero when a goal ends in any way), ``plan`` (nav_msgs/Path in
 ``global_frame``, on every (re)plan), ``global_costmap/costmap`` (OccupancyGrid, Nav2's
-cost translation, latched, re-sent when the map changes) and ``local_costmap/costmap``
+cost translation, latched, at ``global_costmap.publish_frequency``) and ``local_costmap/costmap``
 (at ``local_costmap.publish_frequency``). The control loop runs at
 ``controller_frequency`` on ROS time (use_sim_time works).
 
@@ -85,6 +88,8 @@ ROBOT_LIMITS = {
     'max_vel_theta': 'max_angular_velocity_rad_s', 'acc_lim_x': 'max_acceleration_x_m_s2',
     'acc_lim_y': 'max_acceleration_y_m_s2', 'acc_lim_theta': 'max_angular_acceleration_rad_s2'}
 WARNING_PERIOD_S = 5.0
+#: Scans kept waiting for their pose (10 Hz: 0.5 s worth).
+MAX_PENDING_SCANS = 5
 
 
 class NavigatorNode(Node):
@@ -131,6 +136,20 @@ class NavigatorNode(Node):
             'occupancy_map': OccupancyMap(1.0, (0.0, 0.0, 0.0), np.zeros((1, 1))),
             **self.static_options})
         self.global_inflation = self._inflation('global_costmap')
+        self.global_obstacle_layer = None
+        if self._declare('global_costmap.obstacle_layer', True):
+            self.global_obstacle_layer = _build('global_costmap', ObstacleLayer, {
+                key: self._declare(f'global_costmap.{key}', default) for key, default in
+                (('obstacle_max_range', 2.5), ('obstacle_min_range', 0.0),
+                 ('raytrace_max_range', 3.0), ('raytrace_min_range', 0.0))})
+        self.global_update_period_s = 1.0 / _positive(
+            'global_costmap.update_frequency',
+            self._declare('global_costmap.update_frequency', 1.0))
+        self.global_publish_period_s = 1.0 / _positive(
+            'global_costmap.publish_frequency',
+            self._declare('global_costmap.publish_frequency', 1.0))
+        self.last_global_update_s = -math.inf
+        self.last_global_publish_s = -math.inf
         self.local_window, self.obstacle_layer, self.local_costmap = self._local_costmap()
         self.local_update_period_s = 1.0 / _positive(
             'local_costmap.update_frequency',
@@ -147,6 +166,8 @@ class NavigatorNode(Node):
         _warm_up(planner, controller)
         self.tf_buffer = TransformBuffer()
         self.global_costmap: Optional[Costmap2D] = None
+        self.global_base: Optional[Costmap2D] = None   # static + keepout, not inflated
+        self.pending_scans = deque(maxlen=MAX_PENDING_SCANS)
         self.odom_twist: Optional[nav.Twist2D] = None
         self.new_goals = deque()
         self.goal_handles: Dict[Hashable, object] = {}
@@ -259,31 +280,74 @@ class NavigatorNode(Node):
             self.get_logger().warning(f'ignoring a map: {error}', throttle_duration_sec=5.0)
             return
         static = StaticLayer(occupancy, **self.static_options)
-        LayeredCostmap(costmap, [static, self.keepout_layer, self.global_inflation]).update()
-        self.global_costmap = costmap
-        self.global_costmap_pub.publish(occupancy_grid(
-            costmap.to_occupancy_map(), self.global_frame, self.get_clock().now().to_msg()))
+        LayeredCostmap(costmap, [static, self.keepout_layer]).update()
+        self.global_base = costmap
+        if self.global_obstacle_layer is not None:
+            self.global_obstacle_layer.clear()
+        self._update_global_costmap()
+        self.last_global_publish_s = -math.inf
         self.get_logger().info(
             f'global costmap: {costmap.size_x} x {costmap.size_y} cells at '
             f'{costmap.resolution_m:g} m from the map, {len(self.keepout_layer.polygons)} '
             'keepout zone(s)')
 
+    def _update_global_costmap(self) -> None:
+        """Rebuild the global costmap: static + keepout, the scan's obstacles, inflation."""
+        costmap = self.global_base.copy()
+        if self.global_obstacle_layer is not None:
+            self.global_obstacle_layer.update(costmap)
+        self.global_inflation.update(costmap)
+        self.global_costmap = costmap
+
+    def _add_scan(self, layer: ObstacleLayer, frame_to: str, msg: LaserScan) -> int:
+        """Buffer a scan in layer, seen from the laser's pose in frame_to at its stamp."""
+        sensor = self.tf_buffer.lookup(frame_to, msg.header.frame_id.lstrip('/'),
+                                       stamp_to_s(msg.header.stamp))
+        return layer.add_scan(sensor.x, sensor.y, sensor.yaw, msg.ranges, msg.angle_min,
+                              msg.angle_increment, msg.range_min, msg.range_max)
+
     def on_scan(self, msg: LaserScan) -> None:
-        """Buffer a scan for the local costmap, seen from the laser's pose in odom."""
-        frame = msg.header.frame_id.lstrip('/')
-        try:
+        """Queue a scan until the laser's pose at its time is known (tf2 MessageFilter)."""
+        self.pending_scans.append(msg)
+        self._process_scans()
+
+    def _process_scans(self) -> None:
+        """
+        Put the queued scans, oldest first, into both costmaps once their poses are known.
+
+        A scan waits until odom -> laser is known at its stamp (the EKF publishes after
+        the scan is taken): the newest pose instead would put a scan taken while turning
+        at 1 rad/s 0.1 rad askew, marking phantom walls 0.25 m off at 2.5 m. A scan still
+        unplaced transform_tolerance after its stamp is dropped, as Nav2's MessageFilter
+        drops it.
+        """
+        now_s = self.get_clock().now().nanoseconds * 1e-9
+        while self.pending_scans:
+            msg = self.pending_scans[0]
             try:
-                sensor = self.tf_buffer.lookup(self.odom_frame, frame,
-                                               stamp_to_s(msg.header.stamp))
-            except TransformError:
-                sensor = self.tf_buffer.lookup(self.odom_frame, frame)
-            ignored = self.obstacle_layer.add_scan(
-                sensor.x, sensor.y, sensor.yaw, msg.ranges, msg.angle_min, msg.angle_increment,
-                msg.range_min, msg.range_max)
-        except (TransformError, ValueError) as error:
-            self.get_logger().warning(f'ignoring a scan: {error}',
-                                      throttle_duration_sec=WARNING_PERIOD_S)
-            return
+                ignored = self._add_scan(self.obstacle_layer, self.odom_frame, msg)
+            except TransformError as error:
+                if now_s <= stamp_to_s(msg.header.stamp) + self.transform_tolerance:
+                    return   # its pose may still come
+                self.pending_scans.popleft()
+                self.get_logger().warning(f'ignoring a scan: {error}',
+                                          throttle_duration_sec=WARNING_PERIOD_S)
+                continue
+            except ValueError as error:
+                self.pending_scans.popleft()
+                self.get_logger().warning(f'ignoring a scan: {error}',
+                                          throttle_duration_sec=WARNING_PERIOD_S)
+                continue
+            self.pending_scans.popleft()
+            self._report_ignored(ignored, msg)
+            if self.global_obstacle_layer is not None and self.global_base is not None:
+                try:
+                    self._add_scan(self.global_obstacle_layer, self.global_frame, msg)
+                except (TransformError, ValueError):
+                    pass   # no map -> odom at that time yet: the local costmap has it
+
+    def _report_ignored(self, ignored: int, msg: LaserScan) -> None:
+        """Warn (throttled) about ranges that could not be used."""
         if ignored:
             self.get_logger().warning(
                 f'scan: {ignored} of {len(msg.ranges)} ranges unusable (NaN, -inf or below '
@@ -338,6 +402,18 @@ class NavigatorNode(Node):
             robot_in_map = self.tf_buffer.lookup(self.global_frame, self.base_frame)
         except TransformError as lookup_error:
             error = str(lookup_error)
+        self._process_scans()
+        if self.global_base is not None and \
+                now_s - self.last_global_update_s >= self.global_update_period_s - 1e-9:
+            if self.global_obstacle_layer is not None:
+                self._update_global_costmap()
+            self.last_global_update_s = now_s
+        if self.global_costmap is not None and \
+                now_s - self.last_global_publish_s >= self.global_publish_period_s - 1e-9:
+            self.global_costmap_pub.publish(occupancy_grid(
+                self.global_costmap.to_occupancy_map(), self.global_frame,
+                self.get_clock().now().to_msg()))
+            self.last_global_publish_s = now_s
         if robot_in_odom is not None and \
                 now_s - self.last_local_update_s >= self.local_update_period_s - 1e-9:
             self.local_window.move_to(robot_in_odom.x, robot_in_odom.y)
@@ -380,9 +456,12 @@ class NavigatorNode(Node):
             if handle.is_cancel_requested:
                 self.navigator.cancel(goal_id)
         out = self.navigator.tick(self._tick_inputs(now_s))
-        if out.clear_local_costmap:
+        if out.clear_local_costmap:   # Nav2's recovery clears both costmaps' obstacles
             self.obstacle_layer.clear()
             self.last_local_update_s = -math.inf
+            if self.global_obstacle_layer is not None:
+                self.global_obstacle_layer.clear()
+                self.last_global_update_s = -math.inf
         if out.new_plan is not None:
             self._publish_plan(out.new_plan, now)
         if out.twist is not None:
