@@ -66,6 +66,7 @@ import math
 from typing import Optional, Sequence, Tuple
 
 from mecanum_navigation.grid_search import BLOCKED, segment_cost
+from numba import njit
 import numpy as np
 
 Twist2D = Tuple[float, float, float]
@@ -73,9 +74,6 @@ Pose2D = Tuple[float, float, float]
 
 #: How far (m) a carrot in an inscribed cell may be moved to a free one.
 CARROT_SHIFT_M = 0.1
-#: Most trajectories checked together against the scan points (see _best_clear): the
-#: best alone first, then 8, then 64 at a time.
-CLEARANCE_BATCH = 64
 
 STATUS_FOLLOWING = 'following'
 STATUS_ROTATING = 'rotating_to_goal'
@@ -805,8 +803,9 @@ class LocalController:
         obstacle cell's centre may be 0.17 m from the obstacle itself). Here the
         footprint circle (robot_radius) at every step must stay collision_margin from
         every point (scan returns); a robot already nearer than that may move but not
-        get nearer. Trajectories are checked in score order, a batch at a time, so the
-        usual cost is the best one alone. Without points or robot_radius: the best score.
+        get nearer. Trajectories are checked in score order (compiled, stopping at a
+        trajectory's first point too near), so the usual cost is the best one alone.
+        Without points or robot_radius: the best score.
         """
         p = self.params
         finite = np.isfinite(scores)
@@ -821,20 +820,14 @@ class LocalController:
             return int(np.argmin(scores))
         required = min(p.collision_margin, float(np.min(distances)) - p.robot_radius - 1e-3)
         limit = max(p.robot_radius + required, 0.0) ** 2
-        near_x = near[:, 0].astype(np.float32)
-        near_y = near[:, 1].astype(np.float32)
+        # Nearest points first: a trajectory that hits something usually hits them.
+        near = near[np.argsort(distances[distances <= self._reach + p.robot_radius
+                                         + p.collision_margin])]
         order = np.argsort(scores, kind='stable')[:int(np.count_nonzero(finite))]
-        start, size = 0, 1
-        while start < order.size:
-            batch = order[start:start + size]
-            start, size = start + size, min(CLEARANCE_BATCH, 8 * size)
-            dx = xs[batch][:, :, None] - near_x
-            dy = ys[batch][:, :, None] - near_y
-            closest = np.min(dx * dx + dy * dy, axis=(1, 2))
-            clear = closest >= limit
-            if np.any(clear):
-                return int(batch[int(np.argmax(clear))])
-        return None
+        best = _first_clear(order.astype(np.int64), xs, ys,
+                            np.ascontiguousarray(near[:, 0], dtype=np.float32),
+                            np.ascontiguousarray(near[:, 1], dtype=np.float32), limit)
+        return None if best < 0 else int(best)
 
     def _obstacle_critic(self, costmap, pose: np.ndarray, xs: np.ndarray,
                          ys: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
@@ -868,6 +861,32 @@ class LocalController:
 
 
 # --- helpers ------------------------------------------------------------------------
+
+@njit(cache=True)
+def _first_clear(order, xs, ys, px, py, limit2):   # pragma: no cover - compiled
+    """
+    Return the first trajectory in order whose every point is >= sqrt(limit2) from all points.
+
+    xs, ys: (N, K) trajectories; px, py: the points. -1 when none is. A trajectory stops
+    being checked at its first point too near (usually a near one), so rejecting costs
+    little and accepting costs K x P distances.
+    """
+    steps = xs.shape[1]
+    for candidate in order:
+        clear = True
+        for k in range(steps):
+            x, y = xs[candidate, k], ys[candidate, k]
+            for j in range(px.shape[0]):
+                dx, dy = x - px[j], y - py[j]
+                if dx * dx + dy * dy < limit2:
+                    clear = False
+                    break
+            if not clear:
+                break
+        if clear:
+            return candidate
+    return -1
+
 
 def wrap_angle(angle: float) -> float:
     """Wrap an angle in radians to [-pi, pi)."""
