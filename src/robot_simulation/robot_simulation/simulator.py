@@ -29,6 +29,9 @@ from robot_simulation.world import World
 WALKER_GAP_M = 0.15
 #: How long (s) a walking person waits for the robot before turning back.
 WALKER_PATIENCE_S = 3.0
+#: How far (m) a person steps aside from their way to pass a robot, and how fast (m/s).
+WALKER_SIDESTEP_M = 0.6
+WALKER_SIDESTEP_SPEED_M_S = 0.4
 
 
 @dataclass(frozen=True)
@@ -123,6 +126,7 @@ class Simulation:
         self._walk_time_s = [0.0] * len(world.moving_obstacles)
         self._walk_direction = [1.0] * len(world.moving_obstacles)
         self._waited_s = [0.0] * len(world.moving_obstacles)
+        self._walk_offset = [(0.0, 0.0)] * len(world.moving_obstacles)   # aside, world m
 
     def step(self) -> None:
         """Advance one physics step with the board's current duties."""
@@ -138,34 +142,93 @@ class Simulation:
 
     def _walk(self, dt_s: float) -> None:
         """
-        Move each walker on by dt_s unless the robot stands in its way, WALKER_GAP_M ahead.
+        Move each walker on by dt_s, stepping aside for a robot in its way.
 
-        People in a home stop for a robot in their way rather than walk into it, so a
-        contact with a walker is the robot's doing (it drove into the person). In the
-        way: ahead of the walker and less than the two radii plus 5 cm off its line;
-        a robot beside the way does not stop it. After WALKER_PATIENCE_S of waiting the
-        walker turns back and walks its path the other way (no one waits for ever).
+        People in a home do not walk into a robot, so a contact with a walker is the
+        robot's doing (it drove into the person). In the way: ahead of the walker, less
+        than the two radii plus 5 cm off its line, and WALKER_GAP_M from touching; a robot
+        beside the way does not stop it. A walker with a robot in its way steps aside
+        (away from the robot, at WALKER_SIDESTEP_SPEED_M_S, up to WALKER_SIDESTEP_M off
+        its path, never into furniture) and walks on past it, then drifts back onto its
+        path. Where there is no room to pass it waits, and after WALKER_PATIENCE_S turns
+        back and walks its path the other way (no one waits for ever).
         """
         state = self.physics.state
+        robot = (state.x, state.y)
         for index, mover in enumerate(self.world.moving_obstacles):
             step_s = dt_s * self._walk_direction[index]
-            now = mover.position_at(self._walk_time_s[index])
-            ahead = mover.position_at(self._walk_time_s[index] + step_s)
-            step = math.dist(now, ahead)
+            base_now = mover.position_at(self._walk_time_s[index])
+            base_ahead = mover.position_at(self._walk_time_s[index] + step_s)
+            step = math.dist(base_now, base_ahead)
+            if step == 0.0:
+                self._walk_time_s[index] += step_s
+                continue
+            direction = ((base_ahead[0] - base_now[0]) / step,
+                         (base_ahead[1] - base_now[1]) / step)
+            offset = self._walk_offset[index]
+            now = (base_now[0] + offset[0], base_now[1] + offset[1])
+            ahead = (base_ahead[0] + offset[0], base_ahead[1] + offset[1])
             contact = mover.radius_m + self.robot.footprint_radius_m
-            if step > 0.0:
-                dx, dy = (ahead[0] - now[0]) / step, (ahead[1] - now[1]) / step
-                rx, ry = state.x - now[0], state.y - now[1]
-                along, across = rx * dx + ry * dy, abs(rx * dy - ry * dx)
-                if (along > 0.0 and across < contact + 0.05
-                        and math.dist(ahead, (state.x, state.y)) < contact + WALKER_GAP_M):
-                    self._waited_s[index] += dt_s
-                    if self._waited_s[index] >= WALKER_PATIENCE_S:
-                        self._walk_direction[index] *= -1.0
-                        self._waited_s[index] = 0.0
+            if not self._robot_in_way(now, ahead, direction, contact):
+                self._waited_s[index] = 0.0
+                nearer = self._back_to_path(mover.radius_m, base_ahead, offset, dt_s,
+                                            contact)
+                # Aside, the way on may be blocked by furniture: back to the path first.
+                if nearer == offset and offset != (0.0, 0.0) and not self.world.is_free(
+                        base_ahead[0] + offset[0], base_ahead[1] + offset[1], mover.radius_m):
+                    self._walk_offset[index] = self._back_to_path(
+                        mover.radius_m, base_now, offset, dt_s, contact)
                     continue
-            self._waited_s[index] = 0.0
-            self._walk_time_s[index] += step_s
+                self._walk_time_s[index] += step_s
+                self._walk_offset[index] = nearer
+                continue
+            # Step aside, away from the robot: to the walker's right when the robot is
+            # on its left.
+            rx, ry = robot[0] - now[0], robot[1] - now[1]
+            cross = direction[0] * ry - direction[1] * rx
+            side = -1.0 if cross > 0.0 else 1.0
+            # Only where there is room to pass: the spot far enough aside is free.
+            needed = contact + 0.05 - abs(cross)
+            clear = (offset[0] - direction[1] * side * needed,
+                     offset[1] + direction[0] * side * needed)
+            move = WALKER_SIDESTEP_SPEED_M_S * dt_s * side
+            aside = (offset[0] - direction[1] * move, offset[1] + direction[0] * move)
+            spot = (base_now[0] + aside[0], base_now[1] + aside[1])
+            if (math.hypot(*clear) <= WALKER_SIDESTEP_M + 1e-9
+                    and self.world.is_free(base_now[0] + clear[0], base_now[1] + clear[1],
+                                           mover.radius_m)
+                    and self.world.is_free(spot[0], spot[1], mover.radius_m)
+                    and math.dist(spot, robot) >= contact + 0.01):
+                self._walk_offset[index] = aside
+                self._waited_s[index] = 0.0
+                continue
+            self._waited_s[index] += dt_s
+            if self._waited_s[index] >= WALKER_PATIENCE_S:
+                self._walk_direction[index] *= -1.0
+                self._waited_s[index] = 0.0
+
+    def _robot_in_way(self, now, ahead, direction, contact: float) -> bool:
+        """Tell whether the robot stands in the way of a walker stepping from now to ahead."""
+        state = self.physics.state
+        rx, ry = state.x - now[0], state.y - now[1]
+        along = rx * direction[0] + ry * direction[1]
+        across = abs(rx * direction[1] - ry * direction[0])
+        return (along > 0.0 and across < contact + 0.05
+                and math.dist(ahead, (state.x, state.y)) < contact + WALKER_GAP_M)
+
+    def _back_to_path(self, radius_m: float, base, offset, dt_s: float, contact: float):
+        """Return a walker's offset moved back toward its path (if that spot is free)."""
+        size = math.hypot(*offset)
+        if size == 0.0:
+            return offset
+        shrink = max(0.0, size - WALKER_SIDESTEP_SPEED_M_S * dt_s) / size
+        nearer = (offset[0] * shrink, offset[1] * shrink)
+        spot = (base[0] + nearer[0], base[1] + nearer[1])
+        state = self.physics.state
+        if (self.world.is_free(spot[0], spot[1], radius_m)
+                and math.dist(spot, (state.x, state.y)) >= contact + 0.01):
+            return nearer
+        return offset
 
     def moving_circles(self) -> np.ndarray:
         """Return the moving obstacles now, as rows (x, y, radius)."""
@@ -177,8 +240,10 @@ class Simulation:
         if self._circles_time_s != self.time_s:
             self._circles_time_s = self.time_s
             row = len(self._static_circles)
-            for mover, walk_time_s in zip(self.world.moving_obstacles, self._walk_time_s):
-                circles[row, 0], circles[row, 1] = mover.position_at(walk_time_s)
+            for mover, walk_time_s, offset in zip(self.world.moving_obstacles,
+                                                  self._walk_time_s, self._walk_offset):
+                x, y = mover.position_at(walk_time_s)
+                circles[row, 0], circles[row, 1] = x + offset[0], y + offset[1]
                 row += 1
         return circles
 

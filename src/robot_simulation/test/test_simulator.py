@@ -151,34 +151,68 @@ def test_floor_friction_must_be_a_non_negative_number():
             SimulatorConfig(floor_friction_coefficient=value)
 
 
-def test_a_walking_person_stops_for_the_robot_and_walks_on_after(tmp_path):
-    """A person walking at the standing robot stops 0.15 m short; away from it, walks on."""
+def walk_world(tmp_path, height_m):
+    """Write a world bounds x 0..6, y 0..height_m with a person walking from x 4.5 to 0.5."""
     path = tmp_path / 'walk.yaml'
-    path.write_text(textwrap.dedent("""
+    middle = height_m / 2
+    path.write_text(textwrap.dedent(f"""
         world:
           name: walk
-          bounds_m: [0.0, 0.0, 6.0, 3.0]
+          bounds_m: [0.0, 0.0, 6.0, {height_m}]
           moving_obstacles:
-          - {name: person, radius_m: 0.25, speed_m_s: 0.8, path: [[4.5, 1.5], [0.5, 1.5]],
-             loop: false}
-          robot_start: {x_m: 2.0, y_m: 0.5, yaw_deg: 0.0}
+          - {{name: person, radius_m: 0.25, speed_m_s: 0.8,
+             path: [[4.5, {middle}], [0.5, {middle}]], loop: false}}
+          robot_start: {{x_m: 5.5, y_m: {middle}, yaw_deg: 0.0}}
         """))
-    sim = Simulation(load_world(path), ROBOT, quiet_config())
-    sim.physics.teleport(2.0, 1.5, 0.0)   # onto the way (a world file may not start there)
-    for _ in range(int(4.0 / sim.dt_s)):   # 4 s: it arrives after 2.4 s and waits
+    return load_world(path)
+
+
+def run_for(sim, seconds, track=None):
+    """Step sim for seconds; append (person x, y, distance to the robot) to track."""
+    for _ in range(int(round(seconds / sim.dt_s))):
         sim.step()
+        if track is not None:
+            x, y, _ = sim.moving_circles()[0]
+            state = sim.physics.state
+            track.append((x, y, math.hypot(x - state.x, y - state.y)))
+
+
+def test_a_walking_person_steps_round_a_robot_in_the_way(tmp_path):
+    """In a 3 m wide room a person meets the robot on their way, steps aside and walks on."""
+    world = walk_world(tmp_path, 3.0)
+    sim = Simulation(world, ROBOT, quiet_config())
+    sim.physics.teleport(2.0, 1.5, 0.0)   # onto the way (a world file may not start there)
+    track = []
+    run_for(sim, 7.0, track)
+    xs, ys, distances = np.array(track).T
+    # Past the robot (x 2.0) and back on the path (y 1.5) at its far end (x 0.5) ...
+    assert np.min(xs) == pytest.approx(0.5, abs=0.01)
+    assert np.any(np.abs(ys[xs < 1.0] - 1.5) < 1e-9)
+    # ... having stepped aside by at least the two radii, never touching the robot.
+    assert np.max(np.abs(ys - 1.5)) >= 0.45
+    assert np.max(np.abs(ys - 1.5)) <= 0.6 + 1e-9
+    assert np.min(distances) >= 0.25 + ROBOT.footprint_radius_m
+    assert sim.collision_count == 0
+    # It only left the path near the robot.
+    assert np.all(np.abs(ys[xs > 3.5] - 1.5) < 1e-9)
+
+
+def test_a_walking_person_waits_where_there_is_no_room_then_turns_back(tmp_path):
+    """In a 0.9 m corridor nobody passes the robot: the person waits 3 s, then turns back."""
+    world = walk_world(tmp_path, 0.9)
+    sim = Simulation(world, ROBOT, quiet_config())
+    sim.physics.teleport(2.0, 0.45, 0.0)
+    run_for(sim, 4.0)   # it arrives after about 2.4 s and waits
     x, y, _ = sim.moving_circles()[0]
     # Stops at the robot (x 2.0) + footprint 0.2 + gap 0.15 + radius 0.25 = 2.6, give or
-    # take one step of 0.8 m/s * 5 ms.
-    assert x == pytest.approx(2.0 + ROBOT.footprint_radius_m + 0.15 + 0.25, abs=0.005)
+    # take a step; no room to step aside between the walls.
+    assert x == pytest.approx(2.0 + ROBOT.footprint_radius_m + 0.15 + 0.25, abs=0.01)
+    assert y == pytest.approx(0.45, abs=0.01)
     assert sim.collision_count == 0
-    # After 3 s of waiting it turns back toward x = 4.5.
-    for _ in range(int(2.5 / sim.dt_s)):
-        sim.step()
+    run_for(sim, 2.5)   # after 3 s of waiting it turns back toward x = 4.5
     assert sim.moving_circles()[0][0] > 2.6 + 0.5
     # The person's way back (loop: false walks back) leads away from the robot: it goes.
-    other = Simulation(load_world(path), ROBOT, quiet_config())
-    other.physics.teleport(5.5, 1.5, 0.0)   # behind the person's start
-    for _ in range(int(3.0 / other.dt_s)):
-        other.step()
+    other = Simulation(world, ROBOT, quiet_config())
+    other.physics.teleport(5.5, 0.45, 0.0)   # behind the person's start
+    run_for(other, 3.0)
     assert other.moving_circles()[0][0] == pytest.approx(4.5 - 0.8 * 3.0, abs=0.01)
