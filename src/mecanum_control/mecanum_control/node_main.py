@@ -8,8 +8,15 @@ A parameter error (bad value or type, unreadable parameter file) is logged as fa
 and gives exit code 2, without a traceback. The default spin returns to Python every
 ``WAKE_PERIOD_S``: a wait without a timeout never returns while no message arrives,
 so the signal handlers would not run in an idle node without timers.
+
+The executor is rclpy's EventsExecutor (rclpy.experimental, C++): on the simulated
+clock every node wakes 50 times a second for /clock alone, and the SingleThreadedExecutor
+rebuilds its wait set in Python on every wake; an idle node on sim time took 6.4 % of a
+core with it and 2.6 % with the EventsExecutor. ``MECANUM_EXECUTOR=single`` in the
+environment selects the SingleThreadedExecutor instead.
 """
 
+import os
 import signal
 from typing import Callable, List, Optional
 
@@ -28,9 +35,21 @@ def _raise_keyboard_interrupt(_signum, _frame):
     raise KeyboardInterrupt
 
 
+def make_executor(context=None):
+    """Return the executor for a node's process (see the module docstring)."""
+    if os.environ.get('MECANUM_EXECUTOR', '').strip().lower() != 'single':
+        try:
+            from rclpy.experimental import EventsExecutor
+        except ImportError:   # an rclpy without it
+            pass
+        else:
+            return EventsExecutor(context=context)
+    return SingleThreadedExecutor(context=context)
+
+
 def spin_waking(node: Node) -> None:
     """Spin node until its context shuts down, returning to Python every WAKE_PERIOD_S."""
-    executor = SingleThreadedExecutor(context=node.context)
+    executor = make_executor(node.context)
     executor.add_node(node)
     while node.context.ok():
         executor.spin_once(timeout_sec=WAKE_PERIOD_S)
