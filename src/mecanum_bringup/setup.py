@@ -39,6 +39,8 @@ setup(
             'launch_runner = mecanum_bringup.launch_runner:main',
             'bag_recorder = mecanum_bringup.bag_recorder:main',
             'foxglove_bridge = mecanum_bringup.foxglove_bridge:main',
+            'run_scenarios = mecanum_bringup.scenario_runner:main',
+            'demo = mecanum_bringup.demo:main',
         ],
     },
 )

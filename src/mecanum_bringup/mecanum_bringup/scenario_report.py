@@ -242,12 +242,12 @@ def plot_run(path_png: Any, occupancy_map: Any, truth: Any, estimate: Any,
                   linestyle=':', label='authorised zone')
     for index, path in enumerate(planned_paths):
         points = np.asarray(path, dtype=np.float64).reshape(-1, 2)
-        axes.plot(points[:, 0], points[:, 1], color='tab:blue', linewidth=0.6, alpha=0.6,
-                  label='planned paths' if index == 0 else None)
+        axes.plot(points[:, 0], points[:, 1], color='tab:blue', linewidth=0.8, alpha=0.8,
+                  label='planned paths' if index == 0 else None, zorder=4)
     estimate = track_array(estimate, 'estimate')
-    if len(estimate):
-        axes.plot(estimate[:, 1], estimate[:, 2], color='tab:orange', linewidth=1.2,
-                  linestyle='--', label='estimate')
+    if len(estimate):   # drawn over the truth (it mostly lies on it)
+        axes.plot(estimate[:, 1], estimate[:, 2], color='tab:orange', linewidth=1.0,
+                  linestyle='--', label='estimate', zorder=3)
     truth = track_array(truth, 'truth')
     if len(truth):
         axes.plot(truth[:, 1], truth[:, 2], color='black', linewidth=1.5, label='ground truth')

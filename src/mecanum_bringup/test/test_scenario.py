@@ -562,10 +562,13 @@ def test_localization_errors_skip_estimates_outside_the_truth_and_bad_rows():
 EXPECTED_FILES = {
     'kitchen_run', 'bedroom_and_back', 'strafe_behind_bed', 'goal_outside_zone_refused',
     'goal_in_wall_refused', 'pushed_into_wall', 'must_fail_timeout', 'slippery_floor',
-    'text_commands'}
-#: The strip behind the bed is 0.6 m wide: its goals have 0.27 m and 0.3 m of clearance
-#: (more than the 0.2 m footprint radius); every other goal has at least 0.3 m.
-NARROW_GOALS = {('strafe_behind_bed', 0): 0.25, ('strafe_behind_bed', 1): 0.25}
+    'text_commands', 'apartment_tour'}
+#: Goals nearer than 0.3 m to furniture (each more than the 0.2 m footprint radius): the
+#: strip behind the bed is 0.6 m wide; the tour also stops by the hallway console and
+#: the armchair. Every other goal has at least 0.3 m.
+NARROW_GOALS = {('strafe_behind_bed', 0): 0.25, ('strafe_behind_bed', 1): 0.25,
+                ('apartment_tour', 0): 0.25, ('apartment_tour', 1): 0.25,
+                ('apartment_tour', 4): 0.24, ('apartment_tour', 8): 0.25}
 CLEARANCE_M = 0.3
 
 

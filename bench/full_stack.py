@@ -1,0 +1,136 @@
+#!/usr/bin/env python3
+"""
+Benchmark: the whole simulated robot's real-time factor and its CPU and memory per node.
+
+Runs a scenario (default: the demo's apartment tour, scenarios/apartment_tour.yaml)
+with the scenario runner, at each requested real_time_factor, and while the steps run
+samples every node process (/proc: CPU time, resident memory) and the runner itself.
+Prints, per real_time_factor asked: the real-time factor achieved (simulated seconds of
+the steps / wall seconds), the verdict, and a table per node: CPU (% of one core,
+mean over the steps), peak RSS (MiB). The machine's core count bounds what the sum
+of CPU can be: a sum near 100 % x cores means the stack is CPU bound.
+
+Run:  ./mecanum exec python bench/full_stack.py [--scenario FILE] [--rtf 1 2 5]
+      [--json FILE]
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import sys
+import tempfile
+import threading
+import time
+
+from mecanum_bringup.scenario import load_scenario
+from mecanum_bringup.scenario_runner import run_scenario, RunOptions
+
+REPO = Path(__file__).resolve().parents[1]
+TICKS_PER_S = os.sysconf('SC_CLK_TCK')
+PAGE_MIB = os.sysconf('SC_PAGE_SIZE') / 2 ** 20
+
+
+def cpu_seconds(pid: int) -> float:
+    """Return the user + system CPU seconds of a process (0 when gone)."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / TICKS_PER_S
+
+
+def rss_mib(pid: int) -> float:
+    """Return the resident memory of a process in MiB (0 when gone)."""
+    try:
+        return int(Path(f'/proc/{pid}/statm').read_text().split()[1]) * PAGE_MIB
+    except OSError:
+        return 0.0
+
+
+class Sampler:
+    """Samples the nodes of the running system while its steps run."""
+
+    def __init__(self, period_s: float = 1.0):
+        """Start idle."""
+        self.period_s = period_s
+        self.system = None
+        self.start = {}
+        self.end = {}
+        self.peak_rss = {}
+        self.wall = [0.0, 0.0]
+        self._stop = threading.Event()
+        self._thread = None
+
+    def __call__(self, system) -> None:
+        """Scenario runner hook: the system is up (start) or the steps ended (stop)."""
+        if system is not None:
+            self.system = system
+            pids = dict(system.node_pids(), runner=os.getpid())
+            self.start = {label: cpu_seconds(pid) for label, pid in pids.items()}
+            self.pids = pids
+            self.wall[0] = time.monotonic()
+            self._thread = threading.Thread(target=self._run, daemon=True)
+            self._thread.start()
+        else:
+            self.end = {label: cpu_seconds(pid) for label, pid in self.pids.items()}
+            self.wall[1] = time.monotonic()
+            self._stop.set()
+            self._thread.join()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period_s):
+            for label, pid in self.pids.items():
+                self.peak_rss[label] = max(self.peak_rss.get(label, 0.0), rss_mib(pid))
+
+    def rows(self):
+        """Return [(label, cpu %, peak rss MiB)], busiest first."""
+        wall = max(self.wall[1] - self.wall[0], 1e-9)
+        rows = [(label, 100.0 * (self.end.get(label, 0.0) - self.start[label]) / wall,
+                 self.peak_rss.get(label, 0.0)) for label in self.start]
+        return sorted(rows, key=lambda row: -row[1])
+
+
+def main() -> int:
+    """Run the scenario at each real-time factor and print the tables."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--scenario', type=Path,
+                        default=REPO / 'src/mecanum_bringup/scenarios/apartment_tour.yaml')
+    parser.add_argument('--rtf', type=float, nargs='+', default=[1.0])
+    parser.add_argument('--json', type=Path)
+    options = parser.parse_args()
+    scenario = load_scenario(options.scenario)
+    results = []
+    print(f'full stack: scenario {scenario.name} ({len(scenario.steps)} steps), '
+          f'{os.cpu_count()} cores')
+    for rtf in options.rtf:
+        sampler = Sampler()
+        with tempfile.TemporaryDirectory() as directory:
+            result = run_scenario(scenario, RunOptions(
+                Path(directory), real_time_factor=rtf, on_system=sampler))
+        wall = sampler.wall[1] - sampler.wall[0]
+        sim = result.sim_time_s or 0.0
+        rows = sampler.rows()
+        results.append({'requested_rtf': rtf, 'achieved_rtf': sim / wall if wall else None,
+                        'sim_s': sim, 'wall_s': wall,
+                        'verdict': result.verdict.verdict if result.verdict else None,
+                        'first_failure': result.first_failure,
+                        'nodes': [{'node': n, 'cpu_percent': c, 'peak_rss_mib': m}
+                                  for n, c, m in rows]})
+        print(f'\nrequested real-time factor {rtf:g}: achieved {sim / wall:.2f} '
+              f'({sim:.1f} s simulated in {wall:.1f} s wall), verdict '
+              f'{results[-1]["verdict"]}' + (f' ({result.first_failure})'
+                                            if result.first_failure else ''))
+        print(f'{"node":<24} {"CPU % of a core":>16} {"peak RSS MiB":>13}')
+        print(f'{"-" * 24} {"-" * 16} {"-" * 13}')
+        for name, cpu, rss in rows:
+            print(f'{name:<24} {cpu:>16.1f} {rss:>13.1f}')
+        print(f'{"total":<24} {sum(r[1] for r in rows):>16.1f} '
+              f'{sum(r[2] for r in rows):>13.1f}')
+    if options.json:
+        options.json.write_text(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

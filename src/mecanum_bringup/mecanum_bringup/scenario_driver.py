@@ -1,0 +1,250 @@
+"""
+The scenario runner's ROS side: one rclpy node in the scenario's own domain.
+
+It listens to the simulator's ground truth (``ground_truth/odom``, map frame), amcl's
+estimate (``amcl_pose``), the collision count (``simulation/collisions``), the global plans
+(``plan``) and robot_controller's ``control_status``; it sends NavigateToPose goals on
+``navigate_to_pose``, text commands on ``control_command`` and raw body twists on
+``cmd_vel`` (base_link, m/s and rad/s: below navigation and the collision monitor). Its
+clock is the simulator's (/clock). It spins in a background thread; the runner calls
+its methods from the main thread.
+"""
+
+import math
+import threading
+import time
+from typing import Callable, List, Optional, Tuple
+
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from mecanum_interfaces.action import NavigateToPose
+from nav_msgs.msg import Odometry, Path
+import numpy as np
+import rclpy
+from rclpy.action import ActionClient
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import String, UInt32
+
+#: Wall seconds to wait for a goal's answer before sending it again (lost in discovery).
+GOAL_RESEND_S = 5.0
+#: Wall seconds to wait for an answer at all.
+ANSWER_TIMEOUT_S = 30.0
+
+Poll = Callable[[], float]
+
+
+def _yaw(q) -> float:
+    return 2.0 * math.atan2(q.z, q.w)
+
+
+def _stamp_s(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+class ScenarioDriver:
+    """The runner's node: records what happens and sends the steps' commands."""
+
+    def __init__(self, domain_id: int):
+        """Create the node in domain_id on simulated time and start spinning it."""
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(
+            'scenario_runner', context=self.context,
+            parameter_overrides=[Parameter('use_sim_time', value=True)])
+        self._lock = threading.Lock()
+        self._truth: List[Tuple[float, float, float, float]] = []
+        self._estimate: List[Tuple[float, float, float, float]] = []
+        self._plans: List[np.ndarray] = []
+        self._want_plan = False
+        self._collision_count = 0
+        self.collision_times: List[float] = []
+        self._collision_points: List[Tuple[float, float]] = []
+        self._statuses: List[str] = []
+        latched = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        node = self.node
+        node.create_subscription(Odometry, 'ground_truth/odom', self._on_truth, 50)
+        node.create_subscription(PoseWithCovarianceStamped, 'amcl_pose', self._on_estimate,
+                                 latched)
+        node.create_subscription(UInt32, 'simulation/collisions', self._on_collisions, latched)
+        node.create_subscription(Path, 'plan', self._on_plan, 10)
+        node.create_subscription(String, 'control_status', self._on_status, 20)
+        self.cmd_vel_pub = node.create_publisher(Twist, 'cmd_vel', 10)
+        self.command_pub = node.create_publisher(String, 'control_command', 10)
+        self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(node)
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok() and not self._closing.is_set():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: B902 - shutting down mid-spin
+                if self.context.ok() and not self._closing.is_set():
+                    raise
+
+    # --- what it records ---------------------------------------------------------------
+
+    def _on_truth(self, msg: Odometry) -> None:
+        pose = msg.pose.pose
+        with self._lock:
+            self._truth.append((_stamp_s(msg.header.stamp), pose.position.x,
+                                pose.position.y, _yaw(pose.orientation)))
+
+    def _on_estimate(self, msg: PoseWithCovarianceStamped) -> None:
+        pose = msg.pose.pose
+        with self._lock:
+            self._estimate.append((_stamp_s(msg.header.stamp), pose.position.x,
+                                   pose.position.y, _yaw(pose.orientation)))
+
+    def _on_collisions(self, msg: UInt32) -> None:
+        with self._lock:
+            new = int(msg.data) - self._collision_count
+            if new <= 0:
+                return
+            self._collision_count = int(msg.data)
+            t, x, y, _ = self._truth[-1] if self._truth else (math.nan,) * 4
+            self.collision_times.extend([t] * new)
+            self._collision_points.extend([(x, y)] * new)
+
+    def _on_plan(self, msg: Path) -> None:
+        with self._lock:
+            if not self._want_plan or not msg.poses:
+                return
+            self._want_plan = False
+            self._plans.append(np.array([(p.pose.position.x, p.pose.position.y)
+                                         for p in msg.poses]))
+
+    def _on_status(self, msg: String) -> None:
+        with self._lock:
+            self._statuses.append(msg.data)
+
+    def sim_now(self) -> Optional[float]:
+        """Return the simulated time (s), None before the first /clock."""
+        nanoseconds = self.node.get_clock().now().nanoseconds
+        return nanoseconds * 1e-9 if nanoseconds > 0 else None
+
+    def latest_truth(self) -> Optional[Tuple[float, float, float, float]]:
+        """Return the newest true pose (t, x, y, yaw), or None."""
+        with self._lock:
+            return self._truth[-1] if self._truth else None
+
+    def truth_track(self) -> np.ndarray:
+        """Return the ground truth so far as (N, 4) t, x, y, yaw."""
+        with self._lock:
+            return np.array(self._truth, dtype=np.float64).reshape(-1, 4)
+
+    def estimate_track(self) -> np.ndarray:
+        """Return amcl's estimates so far as (N, 4) t, x, y, yaw."""
+        with self._lock:
+            return np.array(self._estimate, dtype=np.float64).reshape(-1, 4)
+
+    def plans(self) -> List[np.ndarray]:
+        """Return the first global plan (K, 2) of every goal."""
+        with self._lock:
+            return list(self._plans)
+
+    def collision_points(self) -> List[Tuple[float, float]]:
+        """Return where (true x, y) each collision began."""
+        with self._lock:
+            return list(self._collision_points)
+
+    def status_line(self, elapsed_s: float) -> str:
+        """Return a one-line progress report: time, true pose, amcl error, collisions."""
+        with self._lock:
+            truth = self._truth[-1] if self._truth else None
+            estimate = self._estimate[-1] if self._estimate else None
+            collisions = self._collision_count
+            # amcl updates every update_min_d: compare with the truth of its time.
+            then = None if estimate is None else next(
+                (t for t in reversed(self._truth) if t[0] <= estimate[0]), None)
+        if truth is None:
+            return f'+{elapsed_s:.0f} s: no ground truth yet'
+        text = (f'+{elapsed_s:.0f} s: at ({truth[1]:.2f}, {truth[2]:.2f}) m, '
+                f'{math.degrees(truth[3]):.0f} deg')
+        if then is not None:
+            error = math.hypot(estimate[1] - then[1], estimate[2] - then[2])
+            text += f', amcl off by {error:.2f} m'
+        return text + f', collisions {collisions}'
+
+    # --- what it sends -------------------------------------------------------------------
+
+    def wait_for_navigator(self, timeout_s: float) -> bool:
+        """Wait (wall s) for the navigate_to_pose action server."""
+        return self.navigate.wait_for_server(timeout_sec=timeout_s)
+
+    def send_goal(self, x: float, y: float, yaw: float, poll: Poll):
+        """
+        Send a NavigateToPose goal (map frame) and return its handle (None: no answer).
+
+        A goal sent before the server matched this client's response reader is lost
+        (DDS discovery is asynchronous): it is sent again after GOAL_RESEND_S; a resent
+        goal preempts the lost one, if that one arrived.
+        """
+        goal = NavigateToPose.Goal()
+        goal.pose = PoseStamped()
+        goal.pose.header.frame_id = 'map'
+        goal.pose.pose.position.x, goal.pose.pose.position.y = float(x), float(y)
+        goal.pose.pose.orientation.z = math.sin(yaw / 2.0)
+        goal.pose.pose.orientation.w = math.cos(yaw / 2.0)
+        with self._lock:
+            self._want_plan = True
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while time.monotonic() < deadline:
+            future = self.navigate.send_goal_async(goal)
+            attempt_end = min(deadline, time.monotonic() + GOAL_RESEND_S)
+            while not future.done() and time.monotonic() < attempt_end:
+                poll()
+                time.sleep(0.02)
+            if future.done():
+                return future.result()
+        return None
+
+    def cancel(self, handle, poll: Poll) -> None:
+        """Cancel a goal and wait (up to 5 wall s) for the answer."""
+        future = handle.cancel_goal_async()
+        deadline = time.monotonic() + 5.0
+        while not future.done() and time.monotonic() < deadline:
+            poll()
+            time.sleep(0.02)
+
+    def send_command(self, text: str, poll: Poll) -> Callable[[], List[str]]:
+        """
+        Send a robot_controller text command once it has a subscriber.
+
+        Returns a function giving the control_status messages that arrived since the
+        previous call (starting from this send).
+        """
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while self.command_pub.get_subscription_count() == 0:
+            if time.monotonic() > deadline:
+                raise RuntimeError('robot_controller is not listening on control_command')
+            poll()
+            time.sleep(0.05)
+        with self._lock:
+            seen = [len(self._statuses)]
+        self.command_pub.publish(String(data=text))
+
+        def new_statuses() -> List[str]:
+            with self._lock:
+                fresh = self._statuses[seen[0]:]
+                seen[0] = len(self._statuses)
+            return fresh
+        return new_statuses
+
+    def publish_twist(self, vx: float, vy: float, wz: float) -> None:
+        """Publish one body twist on cmd_vel (m/s, m/s, rad/s)."""
+        msg = Twist()
+        msg.linear.x, msg.linear.y, msg.angular.z = float(vx), float(vy), float(wz)
+        self.cmd_vel_pub.publish(msg)
+
+    def close(self) -> None:
+        """Stop spinning and shut the node's context down."""
+        self._closing.set()
+        self._thread.join(timeout=5.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

@@ -1,0 +1,513 @@
+"""
+run_scenarios: run scenario files with the whole simulated robot and judge them.
+
+Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``)::
+
+    ./mecanum run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
+        [--junit FILE] [--real-time-factor X] [--record] [--foxglove] [--quiet]
+
+PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario` for the
+format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
+isolated: in a ROS domain no other process of this machine holds, with localhost-only
+discovery, in its own processes (mecanum_bringup robot.launch through the launch
+runner: simulator, control stack on the simulated ESP32, description, EKF, map_server +
+amcl, navigator, velocity smoother, collision monitor, robot_controller), headless, on
+simulated time, and every one of those processes is gone when the scenario ends,
+whatever happened.
+
+The runner drives the steps (NavigateToPose goals, text commands on
+``control_command``, raw twists on ``cmd_vel`` below the collision monitor, waits) and
+records the simulator's ground truth (``ground_truth/odom``), amcl's estimate
+(``amcl_pose``), the collisions (``simulation/collisions``) and the plans (``plan``).
+Each scenario gets a folder ``DIR/NAME/``: ``summary.json``, ``run.png`` (map, plans,
+driven path, ground truth, collisions), ``truth.csv`` and ``estimate.csv`` (t_s, x_m,
+y_m, yaw_rad in the map frame), ``system.log`` (every node's output) and, with
+``--record``, ``bag/`` (an MCAP rosbag2 of every topic). The table of verdicts is
+printed at the end; ``--junit`` writes it as JUnit XML for CI.
+
+Exit code: 0 when every scenario got the verdict it expects (a scenario with
+``expect: fail`` must fail), 1 otherwise, 2 when a file is invalid or nothing was found.
+Ctrl-C stops the running scenario cleanly (its report and recording are still written)
+and skips the others.
+"""
+
+import argparse
+from dataclasses import dataclass
+import math
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import Callable, Dict, List, Optional, Sequence
+import uuid
+
+from mecanum_bringup.isolation import isolated_environment, lease_domain_id
+from mecanum_bringup.scenario import (
+    CmdVelStep, CommandStep, error_label, find_scenarios, GoalStep, judge, load_scenario,
+    RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult, WaitStep)
+from mecanum_bringup.scenario_report import (
+    junit_xml, plot_run, results_table, ScenarioResult, summary_json)
+import numpy as np
+import yaml
+
+#: Environment variable carrying a scenario run's marker (to find leftover processes).
+RUN_MARKER = 'MECANUM_SCENARIO_RUN'
+#: Output lines that say the system is ready for the first step, and how long to wait.
+READY_PATTERNS = (('[ekf_filter_node]', 'EKF started'),
+                  ('[navigator]', 'ready for goals'),
+                  ('[hardware_interface]', 'IMU calibrated at rest'))
+READY_TIMEOUT_S = 120.0
+#: Wall seconds a goal may go unanswered (DDS discovery) before it is sent again.
+GOAL_RESEND_S = 5.0
+#: Publishing period (simulated s) of a cmd_vel step's twist.
+CMD_VEL_PERIOD_S = 0.05
+#: How far (m) the robot may move during a goal that ended in an error and still count
+#: as 'refused' (rejected before moving) rather than 'failed'.
+REFUSED_MOTION_M = 0.05
+
+Progress = Callable[[str], None]
+#: Set by SIGINT (Ctrl-C): the running scenario stops cleanly, the others are skipped.
+INTERRUPTED = threading.Event()
+
+
+@dataclass
+class RunOptions:
+    """How to run: output folder, speed override, recording, live view, progress."""
+
+    out_dir: Path
+    real_time_factor: Optional[float] = None
+    record: bool = False
+    foxglove: bool = False
+    progress: Optional[Progress] = None
+    status_period_s: float = 10.0
+    #: Called with the SystemProcess once it is up, and with None when the steps end
+    #: (for benchmarks that watch the node processes).
+    on_system: Optional[Callable[[Optional['SystemProcess']], None]] = None
+
+
+# --- the files of a run --------------------------------------------------------------
+
+def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> Path:
+    """
+    Write the scenario's world, navigator parameters and launch file into run_dir.
+
+    The launch file includes mecanum_bringup robot.launch.yaml with the scenario's world
+    (spawn, zone and moving obstacles built in), map, initial pose (known: 5 cm / 3 deg
+    spread), friction, seed and real-time factor, and the navigator's parameters with
+    the authorised zone (robot.launch has robot_controller for text commands); plus the
+    bag recorder with options.record, the Foxglove bridge with options.foxglove.
+    Returns the launch file's path.
+    """
+    run_dir.mkdir(parents=True, exist_ok=True)
+    world_file = run_dir / 'world.yaml'
+    world_file.write_text(yaml.safe_dump(scenario_world_document(scenario), sort_keys=False),
+                          encoding='utf-8')
+    from ament_index_python.packages import get_package_share_directory
+    nav_share = Path(get_package_share_directory('mecanum_navigation'))
+    params = yaml.safe_load((nav_share / 'config' / 'nav2_params.yaml').read_text())
+    zone = scenario.authorised_zone
+    params['navigator']['ros__parameters']['authorised_zone'] = (
+        [float(c) for point in zone for c in point] if zone else [])
+    nav_params = run_dir / 'nav2_params.yaml'
+    nav_params.write_text(yaml.safe_dump(params, sort_keys=False), encoding='utf-8')
+    x, y, yaw = scenario.initial_pose
+    rtf = options.real_time_factor or scenario.real_time_factor
+    args = {'world': str(world_file), 'map': scenario.map_name,
+            'initial_pose_x': x, 'initial_pose_y': y, 'initial_pose_yaw': yaw,
+            'initial_pose_std_xy': 0.05, 'initial_pose_std_yaw': 0.05,
+            'real_time_factor': rtf, 'seed': scenario.seed,
+            'floor_friction_coefficient': scenario.floor_friction_coefficient,
+            'nav_params_file': str(nav_params), 'board_port': str(run_dir / 'ttySIM'),
+            'estop_latch_file': str(run_dir / 'estop_latched')}
+    entries: List[Dict] = [{'include': {
+        'file': '$(find-pkg-share mecanum_bringup)/launch/robot.launch.yaml',
+        'arg': [{'name': name, 'value': str(value)} for name, value in args.items()]}}]
+    sim_time = [{'name': 'use_sim_time', 'value': 'true'}]
+    if options.record:
+        entries.append({'node': {'pkg': 'mecanum_bringup', 'exec': 'bag_recorder',
+                                 'name': 'bag_recorder', 'param': sim_time + [
+                                     {'name': 'output', 'value': str(run_dir / 'bag')}]}})
+    if options.foxglove:
+        entries.append({'node': {'pkg': 'mecanum_bringup', 'exec': 'foxglove_bridge',
+                                 'name': 'foxglove_bridge', 'param': sim_time}})
+    launch_file = run_dir / 'scenario.launch.yaml'
+    launch_file.write_text(yaml.safe_dump({'launch': entries}, sort_keys=False),
+                           encoding='utf-8')
+    return launch_file
+
+
+# --- the processes -------------------------------------------------------------------
+
+class SystemProcess:
+    """The launch runner running one scenario's system; output to a log file and memory."""
+
+    def __init__(self, launch_file: Path, env: Dict[str, str], log_file: Path):
+        """Start the launch runner in its own session, with a marker in its environment."""
+        self.marker = uuid.uuid4().hex
+        self.lines: List[str] = []
+        self._lock = threading.Lock()
+        self._log = open(log_file, 'w', encoding='utf-8')
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'mecanum_bringup.launch_runner', str(launch_file)],
+            env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        for line in self.process.stdout:
+            line = line.rstrip('\n')
+            with self._lock:
+                self.lines.append(line)
+                self._log.write(line + '\n')
+
+    def node_pids(self) -> Dict[str, int]:
+        """Return {node label: pid} from the launch runner's 'started' lines so far."""
+        pids = {}
+        with self._lock:
+            for line in self.lines:
+                if line.startswith('[runner] started ') and '(pid ' in line:
+                    label = line[len('[runner] started '):].split(' (pid ')[0]
+                    pids[label] = int(line.split('(pid ')[1].split(')')[0])
+        return pids
+
+    def has_line(self, *parts: str) -> bool:
+        """Tell whether an output line so far contains every one of parts."""
+        with self._lock:
+            return any(all(part in line for part in parts) for line in self.lines)
+
+    def alive(self) -> bool:
+        """Tell whether the launch runner still runs."""
+        return self.process.poll() is None
+
+    def tail(self, count: int = 20) -> str:
+        """Return the last count output lines."""
+        with self._lock:
+            return '\n'.join(self.lines[-count:])
+
+    def stop(self, timeout_s: float = 20.0) -> None:
+        """Ctrl-C the runner (it stops every node), then kill whatever is left."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(timeout=5.0)
+        for pid in processes_with_marker(self.marker):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        self._reader.join(timeout=5.0)
+        with self._lock:
+            self._log.close()
+
+
+def processes_with_marker(marker: str) -> List[int]:
+    """Return the PIDs of live processes whose environment has RUN_MARKER=marker."""
+    needle = f'{RUN_MARKER}={marker}'.encode()
+    found = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            if needle in (entry / 'environ').read_bytes().split(b'\0'):
+                found.append(int(entry.name))
+        except (FileNotFoundError, ProcessLookupError, PermissionError):
+            continue
+    return found
+
+
+# --- one scenario ----------------------------------------------------------------------
+
+class Interrupted(Exception):
+    """Ctrl-C during a scenario."""
+
+
+class SystemDown(Exception):
+    """The system's launch runner exited during a scenario."""
+
+
+def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
+    """Run one scenario isolated, write its report folder and return its result."""
+    say = options.progress or (lambda text: None)
+    run_dir = options.out_dir / scenario.name
+    started = time.monotonic()
+    record = RunRecord()
+    plans: List[np.ndarray] = []
+    launch_file = write_run_files(scenario, run_dir, options)
+    with lease_domain_id() as lease:
+        env = isolated_environment(os.environ, lease.domain_id)
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        system = SystemProcess(launch_file, env, run_dir / 'system.log')
+        driver = None
+        try:
+            from mecanum_bringup.scenario_driver import ScenarioDriver
+            driver = ScenarioDriver(lease.domain_id)
+            _wait_until_ready(system, driver, say)
+            say(f'{scenario.name}: system up in {time.monotonic() - started:.0f} s '
+                f'(ROS_DOMAIN_ID {lease.domain_id}); {len(scenario.steps)} steps')
+            if options.on_system:
+                options.on_system(system)
+            try:
+                _run_steps(scenario, driver, system, record, options, say)
+            finally:
+                if options.on_system:
+                    options.on_system(None)
+        except Interrupted:
+            record.aborted = 'interrupted (Ctrl-C)'
+        except SystemDown:
+            record.aborted = 'the system stopped: ' + system.tail(5).replace('\n', ' | ')
+        except Exception as error:  # noqa: B902 - a runner failure is reported, not raised
+            record.aborted = f'runner error: {type(error).__name__}: {error}'
+        finally:
+            if driver is not None:
+                record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
+                record.collision_times = list(driver.collision_times)
+                plans = driver.plans()
+                collision_points = driver.collision_points()
+                driver.close()
+            else:
+                collision_points = []
+            system.stop()
+    if record.step_results:
+        record.duration_s = record.step_results[-1].end_s - record.step_results[0].start_s
+    verdict = judge(scenario, record)
+    wall = time.monotonic() - started
+    result = ScenarioResult.from_run(verdict, record, wall)
+    summary = summary_json(scenario, record, verdict, {
+        'wall_time_s': round(wall, 1),
+        'real_time_factor': options.real_time_factor or scenario.real_time_factor})
+    import json
+    (run_dir / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n',
+                                          encoding='utf-8')
+    for name, track in (('truth', record.truth), ('estimate', record.estimate)):
+        np.savetxt(run_dir / f'{name}.csv', track, fmt='%.4f', delimiter=',',
+                   header='t_s,x_m,y_m,yaw_rad', comments='')
+    _plot(scenario, record, plans, collision_points, run_dir / 'run.png', verdict.verdict)
+    return result
+
+
+def _wait_until_ready(system: SystemProcess, driver, say: Progress) -> None:
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    while not all(system.has_line(*parts) for parts in READY_PATTERNS):
+        _check(system)
+        if time.monotonic() > deadline:
+            missing = [' '.join(parts) for parts in READY_PATTERNS
+                       if not system.has_line(*parts)]
+            raise RuntimeError(f'the system was not ready within {READY_TIMEOUT_S:.0f} s '
+                               f'(no {missing})')
+        time.sleep(0.1)
+    if not driver.wait_for_navigator(timeout_s=30.0):
+        raise RuntimeError('the navigate_to_pose action server did not appear')
+    while driver.sim_now() is None or driver.latest_truth() is None:
+        _check(system)
+        if time.monotonic() > deadline:
+            raise RuntimeError('no /clock or ground truth from the simulator')
+        time.sleep(0.05)
+
+
+def _check(system: SystemProcess) -> None:
+    if not system.alive():
+        raise SystemDown()
+    if INTERRUPTED.is_set():
+        raise Interrupted()
+
+
+def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRecord,
+               options: RunOptions, say: Progress) -> None:
+    total = len(scenario.steps)
+    for number, step in enumerate(scenario.steps, start=1):
+        start_s = driver.sim_now()
+        say(f'  step {number}/{total}: {step.describe()}')
+        result = StepResult(step.kind, 'aborted', start_s=start_s, end_s=start_s)
+        record.step_results.append(result)
+        last_status = [start_s]
+
+        def poll() -> float:
+            """Check the system, print a status line now and then; return sim now."""
+            _check(system)
+            now = driver.sim_now()
+            if now - last_status[0] >= options.status_period_s:
+                last_status[0] = now
+                say('    ' + driver.status_line(now - start_s))
+            return now
+
+        if isinstance(step, GoalStep):
+            _goal(step, driver, result, poll)
+        elif isinstance(step, CommandStep):
+            _command(step, driver, result, poll)
+        elif isinstance(step, CmdVelStep):
+            _cmd_vel(step, driver, result, poll)
+        elif isinstance(step, WaitStep):
+            _wait(step.duration_s, driver, result, poll)
+        result.end_s = driver.sim_now()
+        detail = f' ({error_label(result.error_code)}: {result.error_message})' \
+            if result.error_code else ''
+        say(f'  step {number}/{total}: {result.outcome}{detail} in '
+            f'{result.duration_s:.1f} s')
+
+
+def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
+    start = driver.latest_truth()
+    handle = driver.send_goal(step.x, step.y, step.yaw, poll)
+    if handle is None or not handle.accepted:
+        result.outcome, result.error_code = 'refused', 9000
+        result.error_message = 'the goal was rejected'
+        return
+    future = handle.get_result_async()
+    deadline = result.start_s + step.timeout_s
+    while not future.done():
+        if poll() > deadline:
+            driver.cancel(handle, poll)
+            result.outcome = 'timeout'
+            return
+        time.sleep(0.02)
+    answer = future.result().result
+    result.error_code, result.error_message = int(answer.error_code), answer.error_msg
+    if result.error_code == 0:
+        result.outcome = 'reached'
+        return
+    end = driver.latest_truth()
+    moved = math.hypot(end[1] - start[1], end[2] - start[2])
+    result.outcome = 'refused' if moved < REFUSED_MOTION_M else 'failed'
+
+
+def _command(step: CommandStep, driver, result: StepResult, poll) -> None:
+    statuses = driver.send_command(step.text, poll)
+    deadline = result.start_s + step.timeout_s
+    accepted = step.motion.is_stop   # 'stop' is answered 'done: stop' at once
+    while True:
+        for status in statuses():
+            # Reports of an earlier motion may still arrive: ours start at 'accepted'.
+            if status.startswith('accepted:'):
+                accepted = accepted or status.split(':', 1)[1].strip() == step.text.strip()
+                continue
+            if status.startswith('rejected'):
+                result.outcome, result.error_message = 'rejected', status
+                return
+            if not accepted:
+                continue
+            if status.startswith('done'):
+                result.outcome = 'done'
+                return
+            if status.startswith('interrupted'):
+                result.outcome, result.error_message = 'interrupted', status
+                return
+        if poll() > deadline:
+            driver.send_command('stop', poll)
+            result.outcome = 'timeout'
+            return
+        time.sleep(0.02)
+
+
+def _cmd_vel(step: CmdVelStep, driver, result: StepResult, poll) -> None:
+    end = result.start_s + step.duration_s
+    next_s = result.start_s
+    while True:
+        now = poll()
+        if now >= end:
+            break
+        if now >= next_s:
+            driver.publish_twist(step.vx, step.vy, step.wz)
+            next_s = now + CMD_VEL_PERIOD_S
+        time.sleep(0.005)
+    driver.publish_twist(0.0, 0.0, 0.0)
+    result.outcome = 'done'
+
+
+def _wait(duration_s: float, driver, result: StepResult, poll) -> None:
+    while poll() < result.start_s + duration_s:
+        time.sleep(0.02)
+    result.outcome = 'done'
+
+
+def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
+          collision_points: Sequence, path_png: Path, verdict: str) -> None:
+    from mecanum_navigation.map_io import find_map_file, load_map
+    try:
+        occupancy = load_map(find_map_file(scenario.map_name))
+    except Exception:  # noqa: B902 - a plot without its map is still a plot
+        occupancy = None
+    goals = [(g.x, g.y, g.yaw) for g in scenario.goals]
+    plot_run(path_png, occupancy, record.truth, record.estimate, plans, goals,
+             collision_points, scenario.authorised_zone,
+             title=f'{scenario.name}: {verdict}')
+
+
+# --- the command line --------------------------------------------------------------------
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Command line entry point; returns the exit code (see the module docstring)."""
+    parser = argparse.ArgumentParser(
+        prog='run_scenarios', description='Run scenario files with the simulated robot, '
+        'headless and isolated, and judge them.')
+    parser.add_argument('paths', nargs='+', help='scenario files or folders of them')
+    parser.add_argument('--out', default='scenario_results',
+                        help='report folder (one subfolder per scenario)')
+    parser.add_argument('--junit', help='write the verdicts as JUnit XML to this file')
+    parser.add_argument('--real-time-factor', type=float,
+                        help="override every scenario's real_time_factor")
+    parser.add_argument('--record', action='store_true',
+                        help='record every topic to DIR/NAME/bag (MCAP rosbag2)')
+    parser.add_argument('--foxglove', action='store_true',
+                        help='serve the running system to Foxglove (ws://localhost:8765)')
+    parser.add_argument('--quiet', action='store_true', help='print only the table')
+    options = parser.parse_args(argv)
+    if options.real_time_factor is not None and not (
+            math.isfinite(options.real_time_factor) and options.real_time_factor > 0.0):
+        parser.error('--real-time-factor must be a positive number')
+    scenarios, results = [], []
+    try:
+        files = [file for path in options.paths for file in find_scenarios(path)]
+    except (ScenarioError, OSError) as error:
+        print(f'run_scenarios: {error}', file=sys.stderr)
+        return 2
+    if not files:
+        print(f'run_scenarios: no scenario files in {options.paths}', file=sys.stderr)
+        return 2
+    invalid = False
+    for file in files:
+        try:
+            scenarios.append(load_scenario(file))
+        except ScenarioError as error:
+            invalid = True
+            print(f'run_scenarios: {error}', file=sys.stderr)
+            results.append(ScenarioResult(Path(file).stem, 'pass', error=str(error)))
+    say = (lambda text: None) if options.quiet else (lambda text: print(text, flush=True))
+    run_options = RunOptions(Path(options.out), options.real_time_factor, options.record,
+                             options.foxglove, say)
+
+    def on_sigint(_signum, _frame) -> None:
+        INTERRUPTED.set()
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        for index, scenario in enumerate(scenarios, start=1):
+            if INTERRUPTED.is_set():
+                results.append(ScenarioResult(scenario.name, scenario.expect,
+                                              error='not run (interrupted)'))
+                continue
+            say(f'[{index}/{len(scenarios)}] {scenario.name}: {scenario.description}')
+            result = run_scenario(scenario, run_options)
+            results.append(result)
+            say(f'[{index}/{len(scenarios)}] {scenario.name}: {result.status} '
+                f'(verdict {result.verdict.verdict if result.verdict else "none"}, '
+                f'expected {scenario.expect}) in {result.wall_time_s:.0f} s; report in '
+                f'{run_options.out_dir / scenario.name}')
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    print(results_table(results))
+    if options.junit:
+        Path(options.junit).parent.mkdir(parents=True, exist_ok=True)
+        Path(options.junit).write_text(junit_xml(results), encoding='utf-8')
+    if invalid:
+        return 2
+    return 0 if all(result.status == 'OK' for result in results) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
