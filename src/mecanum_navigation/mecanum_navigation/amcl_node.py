@@ -72,7 +72,8 @@ FILTER_PARAMETERS = (
     'alpha1', 'alpha2', 'alpha3', 'alpha4', 'alpha5', 'min_particles', 'max_particles',
     'pf_err', 'pf_z', 'recovery_alpha_slow', 'recovery_alpha_fast', 'resample_interval',
     'update_min_d', 'update_min_a', 'z_hit', 'z_rand', 'z_max', 'z_short', 'sigma_hit',
-    'laser_likelihood_max_dist', 'laser_max_range', 'laser_min_range', 'max_beams')
+    'laser_likelihood_max_dist', 'laser_max_range', 'laser_min_range', 'max_beams',
+    'do_beamskip', 'beam_skip_distance', 'beam_skip_threshold', 'beam_skip_error_threshold')
 
 
 class AmclNode(Node):

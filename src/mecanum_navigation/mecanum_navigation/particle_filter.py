@@ -117,6 +117,14 @@ class AmclConfig:
     laser_max_range: float = 100.0           # m; <= 0: the scan's range_max
     laser_min_range: float = -1.0            # m; <= 0: the scan's range_min
     max_beams: int = 60
+    # Beam skipping (nav2's, for the likelihood field): a beam whose end point is within
+    # beam_skip_distance of a mapped obstacle for fewer than beam_skip_threshold of the
+    # particles saw something the map lacks (a person) and is left out of the update,
+    # unless more than beam_skip_error_threshold of the beams would be (then all count).
+    do_beamskip: bool = False
+    beam_skip_distance: float = 0.5          # m
+    beam_skip_threshold: float = 0.3
+    beam_skip_error_threshold: float = 0.9
     # Not nav2's: one scan may cut the effective sample size to no less than this fraction
     # of what it was (the likelihood is tempered, L^beta, when it would cut more); 0: off.
     update_min_ess_ratio: float = 0.3
@@ -125,7 +133,11 @@ class AmclConfig:
         """Check every field; raise ValueError naming the parameter."""
         for item in fields(self):
             value = getattr(self, item.name)
-            if item.type is int:
+            if item.type is bool:
+                if not isinstance(value, bool):
+                    raise ValueError(f'parameter {item.name} must be true or false, '
+                                     f'got {value!r}')
+            elif item.type is int:
                 if isinstance(value, bool) or not isinstance(value, numbers.Integral):
                     raise ValueError(f'parameter {item.name} must be an integer, got {value!r}')
             elif isinstance(value, bool) or not isinstance(value, numbers.Real) \
@@ -136,12 +148,14 @@ class AmclConfig:
                      'update_min_a'):
             _require(getattr(self, name) >= 0.0, name, 'must be >= 0', getattr(self, name))
         for name in ('z_hit', 'z_rand', 'z_max', 'z_short', 'recovery_alpha_slow',
-                     'recovery_alpha_fast', 'update_min_ess_ratio'):
+                     'recovery_alpha_fast', 'update_min_ess_ratio', 'beam_skip_threshold',
+                     'beam_skip_error_threshold'):
             value = getattr(self, name)
             _require(0.0 <= value <= 1.0, name, 'must be in [0, 1]', value)
         _require(self.z_hit + self.z_rand > 0.0, 'z_hit',
                  'and z_rand must not both be 0', self.z_hit)
-        for name in ('sigma_hit', 'laser_likelihood_max_dist', 'pf_err', 'pf_z'):
+        for name in ('sigma_hit', 'laser_likelihood_max_dist', 'pf_err', 'pf_z',
+                     'beam_skip_distance'):
             _require(getattr(self, name) > 0.0, name, 'must be > 0', getattr(self, name))
         _require(self.pf_err < 1.0, 'pf_err', 'must be < 1', self.pf_err)
         _require(self.min_particles >= 1, 'min_particles', 'must be >= 1', self.min_particles)
@@ -374,6 +388,38 @@ def _scan_log_likelihoods(xs, ys, yaws, laser_x, laser_y, laser_yaw, ranges, cos
         out[i] = total
 
 
+@njit(cache=True)
+def _beam_log_likelihoods(xs, ys, yaws, laser_x, laser_y, laser_yaw, ranges, cos_b, sin_b,
+                          table, off_map, distances, skip_distance, origin_x, origin_y,
+                          cos_o, sin_o, inv_res, out, agree):
+    """
+    Fill out[i, j], beam j's log-likelihood for particle i, and agree (beam skipping).
+
+    agree[j] counts the particles whose beam j ends within skip_distance of a mapped
+    obstacle (nav2's beam skipping).
+    """
+    rows, cols = table.shape
+    for i in range(xs.shape[0]):
+        c = math.cos(yaws[i])
+        s = math.sin(yaws[i])
+        lx = xs[i] + c * laser_x - s * laser_y - origin_x
+        ly = ys[i] + s * laser_x + c * laser_y - origin_y
+        a = yaws[i] + laser_yaw
+        ca = math.cos(a)
+        sa = math.sin(a)
+        for j in range(ranges.shape[0]):
+            hx = lx + ranges[j] * (ca * cos_b[j] - sa * sin_b[j])
+            hy = ly + ranges[j] * (sa * cos_b[j] + ca * sin_b[j])
+            gx = (cos_o * hx + sin_o * hy) * inv_res
+            gy = (-sin_o * hx + cos_o * hy) * inv_res
+            if gx >= 0.0 and gy >= 0.0 and gx < cols and gy < rows:
+                out[i, j] = table[int(gy), int(gx)]
+                if distances[int(gy), int(gx)] < skip_distance:
+                    agree[j] += 1
+            else:
+                out[i, j] = off_map
+
+
 # --- resampling -------------------------------------------------------------------------
 
 
@@ -492,6 +538,7 @@ class ParticleFilter:
         self.w_slow = 0.0
         self.w_fast = 0.0
         self.last_tempering = 1.0
+        self.last_beams_skipped = 0
 
     # -- state ---------------------------------------------------------------------
 
@@ -714,10 +761,50 @@ class ParticleFilter:
             math.sin(yaw), 1.0 / field.resolution_m, out)
         return out
 
+    def beam_skip_log_likelihoods(self, poses: np.ndarray, ranges: np.ndarray,
+                                  bearings: np.ndarray, range_max: float,
+                                  laser_pose: Sequence[float] = (0.0, 0.0, 0.0)
+                                  ) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return each pose's scan log-likelihood over the beams kept, and the kept mask.
+
+        nav2's beam skipping: a beam is kept when more than beam_skip_threshold of the
+        poses put its end point within beam_skip_distance of a mapped obstacle; when
+        more than beam_skip_error_threshold of the beams would be skipped (the poses
+        disagree with the scan: lost, or a map far from the world), every beam is kept.
+        """
+        cfg = self.config
+        table = self._log_table(float(range_max))
+        poses = np.ascontiguousarray(poses, dtype=float)
+        field = self.field
+        per_beam = np.empty((len(poses), ranges.size))
+        agree = np.zeros(ranges.size, dtype=np.int64)
+        yaw = field.origin[2]
+        _beam_log_likelihoods(
+            poses[:, 0].copy(), poses[:, 1].copy(), poses[:, 2].copy(),
+            float(laser_pose[0]), float(laser_pose[1]), float(laser_pose[2]),
+            np.ascontiguousarray(ranges, dtype=float), np.cos(bearings), np.sin(bearings),
+            table, self._off_map, field.distances_m, cfg.beam_skip_distance,
+            field.origin[0], field.origin[1], math.cos(yaw), math.sin(yaw),
+            1.0 / field.resolution_m, per_beam, agree)
+        kept = agree > cfg.beam_skip_threshold * len(poses)
+        if np.count_nonzero(~kept) > cfg.beam_skip_error_threshold * ranges.size:
+            kept[:] = True
+        self.last_beams_skipped = int(np.count_nonzero(~kept))
+        self._all_beams_log_lik = per_beam.sum(axis=1)
+        return per_beam[:, kept].sum(axis=1), kept
+
     def _sensor_update(self, ranges, bearings, range_max: float, laser: np.ndarray) -> None:
         """Weigh the particles by the scan; track w_slow / w_fast."""
-        log_lik = self.log_likelihoods(self._poses, ranges, bearings, range_max, laser)
-        log_total = _log_sum_exp(self._log_weights + log_lik)
+        if self.config.do_beamskip:
+            # The weights use the beams kept; the recovery's fit measure all of them, so
+            # that a kidnapping (most beams unexplained) is still noticed.
+            log_lik, _ = self.beam_skip_log_likelihoods(self._poses, ranges, bearings,
+                                                        range_max, laser)
+            log_total = _log_sum_exp(self._log_weights + self._all_beams_log_lik)
+        else:
+            log_lik = self.log_likelihoods(self._poses, ranges, bearings, range_max, laser)
+            log_total = _log_sum_exp(self._log_weights + log_lik)
         self.last_tempering = tempering_exponent(self._log_weights, log_lik,
                                                  self.config.update_min_ess_ratio)
         log_w = self._log_weights + self.last_tempering * log_lik
