@@ -18,12 +18,14 @@ default behaviour tree ("navigate w/ replanning and recovery"):
   UNKNOWN; no robot pose -> TF_ERROR; goal off the global costmap -> GOAL_OUTSIDE_MAP;
   outside the ``authorised_zone`` polygon (map frame, even-odd rule; empty = no zone)
   -> GOAL_OUTSIDE_ZONE; goal cell lethal (254, also keepout zones) or inscribed (253,
-  the footprint would touch an obstacle) -> GOAL_IN_OBSTACLE; no plan -> NO_VALID_PATH
-  (the planner's reason, e.g. unknown space or unreachable). A robot whose own cell is
+  the footprint would touch an obstacle) on the map's costmap -> GOAL_IN_OBSTACLE; no
+  plan on the global costmap nor on the map's -> NO_VALID_PATH (the planner's reason,
+  e.g. unknown space or unreachable). The scan's obstacles (a person) steer plans but
+  never fail a goal (see TickInputs.static_costmap). A robot whose own cell is
   blocked (>= 253, e.g. after being pushed against a wall) plans from the nearest free
   cell within 0.5 m, its own position prepended;
 - replanning every 1 / ``replan_frequency`` s, and at once when the rest of the path
-  crosses a lethal cell of the global costmap (a new map or keepout). A failed periodic
+  crosses a lethal cell of the map's costmap (a new map or keepout). A failed periodic
   replan keeps a still-clear path (warning); a blocked path without a new one is a
   failure (code NO_VALID_PATH if it ends the goal);
 - following: the plan is pruned to the robot (kept from the path point behind it, moved
@@ -180,7 +182,11 @@ class TickInputs:
     command is used); pose_age_s: how old the odom pose is (the controller brakes when
     above its transform_tolerance); global_costmap: map frame, None before a map came;
     local_costmap: odom frame; obstacle_points: (P, 2) returns of the newest scan in the
-    odom frame, for the controller's exact clearance check (None: cells only).
+    odom frame, for the controller's exact clearance check (None: cells only);
+    static_costmap: the global costmap without what the scan added (map, keepout,
+    inflation; None: global_costmap is that). What the scan sees (a person) steers the
+    plans but never fails a goal: goal checks, "path blocked" and the fallback plan
+    when the scan's obstacles leave no way use the static costmap.
     """
 
     now_s: float
@@ -192,6 +198,12 @@ class TickInputs:
     pose_age_s: float = 0.0
     pose_error: str = ''
     obstacle_points: Optional[np.ndarray] = None
+    static_costmap: Optional[Costmap2D] = None
+
+    @property
+    def map_costmap(self) -> Optional[Costmap2D]:
+        """Return the static costmap, or the global one when there is no separate one."""
+        return self.static_costmap if self.static_costmap is not None else self.global_costmap
 
 
 @dataclass(frozen=True)
@@ -411,8 +423,8 @@ class Navigator:
             return INVALID_GOAL, goal.invalid_reason, None
         if not all(math.isfinite(v) for v in goal.pose):
             return INVALID_GOAL, f'goal pose is not finite: x={x}, y={y}, yaw={yaw}', None
-        costmap = inputs.global_costmap
-        if costmap is None:
+        costmap = inputs.map_costmap
+        if costmap is None or inputs.global_costmap is None:
             return UNKNOWN, 'no map received yet: cannot check or plan to the goal', None
         if inputs.robot_in_map is None or inputs.robot_in_odom is None:
             return TF_ERROR, f'robot pose unknown: {inputs.pose_error or "no transform"}', None
@@ -435,10 +447,19 @@ class Navigator:
             return GOAL_IN_OBSTACLE, (f'goal {where} is too close to an obstacle: the '
                                       f'footprint would touch it (inscribed cell)'), None
         try:
-            points = self._plan(costmap, inputs.robot_in_map, (x, y))
+            points = self._plan_steered(inputs, (x, y))
         except PlanningError as error:
             return NO_VALID_PATH, f'no valid path to goal {where}: {error}', None
         return NONE, '', points
+
+    def _plan_steered(self, inputs: TickInputs, goal: Point) -> List[Point]:
+        """Plan on the global costmap; where its scan obstacles leave no way, on the map's."""
+        try:
+            return self._plan(inputs.global_costmap, inputs.robot_in_map, goal)
+        except PlanningError:
+            if inputs.map_costmap is inputs.global_costmap:
+                raise
+            return self._plan(inputs.map_costmap, inputs.robot_in_map, goal)
 
     def _plan(self, costmap: Costmap2D, robot: Pose2D, goal: Point) -> List[Point]:
         """Plan from the robot (or the nearest free cell, see the docstring) to goal."""
@@ -495,7 +516,7 @@ class Navigator:
     def _follow(self, inputs: TickInputs, out: TickOutput) -> None:
         """Replan when due or blocked, then run the controller on the odom path."""
         nav = self._nav
-        blocked = path_blocked(inputs.global_costmap, nav.points[nav.segment + 1:])
+        blocked = path_blocked(inputs.map_costmap, nav.points[nav.segment + 1:])
         due = inputs.now_s - nav.plan_time_s >= 1.0 / self.params.replan_frequency - 1e-9
         if blocked or due:
             error = self._replan(inputs, out)
@@ -547,7 +568,7 @@ class Navigator:
             return 'no map'
         x, y, _ = nav.goal.pose
         try:
-            points = self._plan(inputs.global_costmap, inputs.robot_in_map, (x, y))
+            points = self._plan_steered(inputs, (x, y))
         except PlanningError as error:
             return str(error)
         nav.set_plan(points, inputs.now_s)

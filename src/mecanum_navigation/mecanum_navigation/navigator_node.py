@@ -142,6 +142,11 @@ class NavigatorNode(Node):
                 key: self._declare(f'global_costmap.{key}', default) for key, default in
                 (('obstacle_max_range', 2.5), ('obstacle_min_range', 0.0),
                  ('raytrace_max_range', 3.0), ('raytrace_min_range', 0.0))})
+        self.global_persistence_s = self._declare('global_costmap.observation_persistence', 2.0)
+        if not (math.isfinite(self.global_persistence_s) and self.global_persistence_s >= 0.0):
+            raise ValueError('parameter global_costmap.observation_persistence must be >= 0 s, '
+                             f'got {self.global_persistence_s}')
+        self.global_scans = deque()   # (stamp s, laser pose in map, LaserScan), oldest first
         self.global_update_period_s = 1.0 / _positive(
             'global_costmap.update_frequency',
             self._declare('global_costmap.update_frequency', 1.0))
@@ -167,6 +172,7 @@ class NavigatorNode(Node):
         self.tf_buffer = TransformBuffer()
         self.global_costmap: Optional[Costmap2D] = None
         self.global_base: Optional[Costmap2D] = None   # static + keepout, not inflated
+        self.global_static: Optional[Costmap2D] = None  # the base, inflated
         self.pending_scans = deque(maxlen=MAX_PENDING_SCANS)
         self.odom_twist: Optional[nav.Twist2D] = None
         self.new_goals = deque()
@@ -282,20 +288,36 @@ class NavigatorNode(Node):
         static = StaticLayer(occupancy, **self.static_options)
         LayeredCostmap(costmap, [static, self.keepout_layer]).update()
         self.global_base = costmap
-        if self.global_obstacle_layer is not None:
-            self.global_obstacle_layer.clear()
-        self._update_global_costmap()
+        self.global_static = costmap.copy()
+        self.global_inflation.update(self.global_static)
+        self.global_scans.clear()
+        self._update_global_costmap(-math.inf)
         self.last_global_publish_s = -math.inf
         self.get_logger().info(
             f'global costmap: {costmap.size_x} x {costmap.size_y} cells at '
             f'{costmap.resolution_m:g} m from the map, {len(self.keepout_layer.polygons)} '
             'keepout zone(s)')
 
-    def _update_global_costmap(self) -> None:
-        """Rebuild the global costmap: static + keepout, the scan's obstacles, inflation."""
+    def _update_global_costmap(self, now_s: float) -> None:
+        """
+        Rebuild the global costmap: static + keepout, recent scans' obstacles, inflation.
+
+        Only the scans of the last observation_persistence seconds mark (Nav2's
+        observation persistence, applied to a layer rebuilt each time): a person who
+        walked on leaves no trail of obstacles behind.
+        """
+        if self.global_obstacle_layer is None:
+            self.global_costmap = self.global_static
+            return
+        while self.global_scans and self.global_scans[0][0] < now_s - self.global_persistence_s:
+            self.global_scans.popleft()
+        layer = self.global_obstacle_layer
+        layer.clear()
+        for _, sensor, msg in self.global_scans:
+            layer.add_scan(sensor.x, sensor.y, sensor.yaw, msg.ranges, msg.angle_min,
+                           msg.angle_increment, msg.range_min, msg.range_max)
         costmap = self.global_base.copy()
-        if self.global_obstacle_layer is not None:
-            self.global_obstacle_layer.update(costmap)
+        layer.update(costmap)
         self.global_inflation.update(costmap)
         self.global_costmap = costmap
 
@@ -342,8 +364,11 @@ class NavigatorNode(Node):
             self._report_ignored(ignored, msg)
             if self.global_obstacle_layer is not None and self.global_base is not None:
                 try:
-                    self._add_scan(self.global_obstacle_layer, self.global_frame, msg)
-                except (TransformError, ValueError):
+                    self.global_scans.append((
+                        stamp_to_s(msg.header.stamp),
+                        self.tf_buffer.lookup(self.global_frame, msg.header.frame_id.lstrip('/'),
+                                              stamp_to_s(msg.header.stamp)), msg))
+                except TransformError:
                     pass   # no map -> odom at that time yet: the local costmap has it
 
     def _report_ignored(self, ignored: int, msg: LaserScan) -> None:
@@ -405,8 +430,7 @@ class NavigatorNode(Node):
         self._process_scans()
         if self.global_base is not None and \
                 now_s - self.last_global_update_s >= self.global_update_period_s - 1e-9:
-            if self.global_obstacle_layer is not None:
-                self._update_global_costmap()
+            self._update_global_costmap(now_s)
             self.last_global_update_s = now_s
         if self.global_costmap is not None and \
                 now_s - self.last_global_publish_s >= self.global_publish_period_s - 1e-9:
@@ -438,6 +462,7 @@ class NavigatorNode(Node):
             robot_in_map=None if robot_in_map is None else _pose(robot_in_map),
             robot_in_odom=None if robot_in_odom is None else _pose(robot_in_odom),
             local_costmap=self.local_costmap.costmap, global_costmap=self.global_costmap,
+            static_costmap=self.global_static,
             twist=self.odom_twist, pose_age_s=0.0 if fresh else 2.0 * self.transform_tolerance,
             pose_error=error, obstacle_points=self.obstacle_layer.latest_points)
 
@@ -460,7 +485,7 @@ class NavigatorNode(Node):
             self.obstacle_layer.clear()
             self.last_local_update_s = -math.inf
             if self.global_obstacle_layer is not None:
-                self.global_obstacle_layer.clear()
+                self.global_scans.clear()
                 self.last_global_update_s = -math.inf
         if out.new_plan is not None:
             self._publish_plan(out.new_plan, now)

@@ -102,6 +102,7 @@ class World:
                  map_to_odom=(0.7, -0.4, 0.5), params=NavigatorParams(), controller=None,
                  checker=None):
         self.global_costmap = costmap
+        self.static_costmap = None   # the map's costmap, when the global one has more
         self.map_to_odom = PlanarTransform(*map_to_odom)
         odom = self.map_to_odom.inverse().compose(PlanarTransform(*start_in_map))
         self.odom_pose = (odom.x, odom.y, odom.yaw)
@@ -144,7 +145,7 @@ class World:
         """Run one navigator tick and move the robot by its command; return the output."""
         out = self.navigator.tick(TickInputs(
             self.now, self.map_pose, self.odom_pose, self.local_costmap(),
-            self.global_costmap, self.twist))
+            self.global_costmap, self.twist, static_costmap=self.static_costmap))
         if out.clear_local_costmap and self.clear_on_request:
             self.obstacles = np.zeros((0, 2))
         if out.twist is not None:
@@ -448,6 +449,38 @@ def test_replans_at_once_when_the_path_crosses_a_new_obstacle():
     assert not path_blocked(world.global_costmap, np.array(out.new_plan))
     assert max(y for _, y in out.new_plan) >= 2.2   # over the wall's end (2.0 + 0.2)
     assert out.outcomes == []
+
+
+def test_what_the_scan_adds_steers_the_plan_but_never_fails_the_goal():
+    """
+    A person the scan put into the global costmap (not in the map) near the way round ROOM's wall.
+
+    Beside the way (y 2.6..3.0) the plan goes round them; standing in the way (y 1.9..3.0,
+    nothing left open) the goal is still accepted, on the map's plan, and a replan that
+    finds no way does not end it: the local controller and the recoveries deal with
+    people, as the scan's obstacles only steer.
+    """
+    beside = global_costmap(occupancy(4.0, 3.0, [WALL] + BOX + [(1.9, 2.6, 2.2, 3.0)]))
+    world = World(beside, start_in_map=(0.5, 0.5, 0.0))
+    world.static_costmap = ROOM
+    world.navigator.submit('goal', (2.6, 0.5, 0.0))
+    plan = np.array(world.tick().new_plan)
+    near_wall = plan[(plan[:, 0] > 1.8) & (plan[:, 0] < 2.3)]
+    assert len(near_wall) and near_wall[:, 1].max() < 2.6 - 0.2   # kept off the person
+    blocking = global_costmap(occupancy(4.0, 3.0, [WALL] + BOX + [(1.9, 1.8, 2.2, 3.0)]))
+    world = World(blocking, start_in_map=(0.5, 0.5, 0.0))
+    world.static_costmap = ROOM
+    world.move = False
+    world.navigator.submit('goal', (2.6, 0.5, 0.0))
+    outputs = [world.tick() for _ in range(30)]
+    first = np.array(outputs[0].new_plan)
+    assert first[:, 1].max() > 1.8 + 0.2   # the map's way round the wall's end
+    assert not outcomes(outputs)
+    assert world.navigator.state == nav.FOLLOWING
+    # Without the map's costmap the same person ends the goal at once.
+    world = World(blocking, start_in_map=(0.5, 0.5, 0.0))
+    world.navigator.submit('goal', (2.6, 0.5, 0.0))
+    assert [o.code for o in outcomes([world.tick()])] == [nav.NO_VALID_PATH]
 
 
 def test_a_failed_periodic_replan_keeps_a_clear_path():
