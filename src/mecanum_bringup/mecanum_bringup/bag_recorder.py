@@ -107,6 +107,8 @@ def spin_until_signal(node: Node) -> None:
     stop = threading.Event()
     previous = {number: signal.signal(number, lambda *_: stop.set())
                 for number in (signal.SIGINT, signal.SIGTERM)}
+    # Not the EventsExecutor of the other nodes: with it the subscriptions this node
+    # creates as topics appear never delivered a message (a 5-minute demo recorded 0).
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     try:

@@ -32,6 +32,8 @@ WALKER_PATIENCE_S = 3.0
 #: How far (m) a person steps aside from their way to pass a robot, and how fast (m/s).
 WALKER_SIDESTEP_M = 0.6
 WALKER_SIDESTEP_SPEED_M_S = 0.4
+#: The room (m) a person leaves between themselves and a robot they walk past.
+WALKER_PASS_GAP_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -146,12 +148,15 @@ class Simulation:
 
         People in a home do not walk into a robot, so a contact with a walker is the
         robot's doing (it drove into the person). In the way: ahead of the walker, less
-        than the two radii plus 5 cm off its line, and WALKER_GAP_M from touching; a robot
+        than the two radii plus WALKER_PASS_GAP_M off its line, and WALKER_GAP_M from
+        touching; a robot
         beside the way does not stop it. A walker with a robot in its way steps aside
         (away from the robot, at WALKER_SIDESTEP_SPEED_M_S, up to WALKER_SIDESTEP_M off
-        its path, never into furniture) and walks on past it, then drifts back onto its
-        path. Where there is no room to pass it waits, and after WALKER_PATIENCE_S turns
-        back and walks its path the other way (no one waits for ever).
+        its path, never into furniture, keeping WALKER_PASS_GAP_M from the robot) and
+        walks on past it, then drifts back onto its path. Where there is no room to pass
+        (or it is held between the robot and furniture) it waits, and after
+        WALKER_PATIENCE_S turns back and walks its path the other way (no one waits for
+        ever).
         """
         state = self.physics.state
         robot = (state.x, state.y)
@@ -170,15 +175,17 @@ class Simulation:
             ahead = (base_ahead[0] + offset[0], base_ahead[1] + offset[1])
             contact = mover.radius_m + self.robot.footprint_radius_m
             if not self._robot_in_way(now, ahead, direction, contact):
-                self._waited_s[index] = 0.0
                 nearer = self._back_to_path(mover.radius_m, base_ahead, offset, dt_s,
                                             contact)
                 # Aside, the way on may be blocked by furniture: back to the path first.
                 if nearer == offset and offset != (0.0, 0.0) and not self.world.is_free(
                         base_ahead[0] + offset[0], base_ahead[1] + offset[1], mover.radius_m):
-                    self._walk_offset[index] = self._back_to_path(
-                        mover.radius_m, base_now, offset, dt_s, contact)
+                    back = self._back_to_path(mover.radius_m, base_now, offset, dt_s, contact)
+                    if back == offset:   # held between the robot and furniture: wait
+                        self._wait(index, dt_s)
+                    self._walk_offset[index] = back
                     continue
+                self._waited_s[index] = 0.0
                 self._walk_time_s[index] += step_s
                 self._walk_offset[index] = nearer
                 continue
@@ -188,7 +195,7 @@ class Simulation:
             cross = direction[0] * ry - direction[1] * rx
             side = -1.0 if cross > 0.0 else 1.0
             # Only where there is room to pass: the spot far enough aside is free.
-            needed = contact + 0.05 - abs(cross)
+            needed = contact + WALKER_PASS_GAP_M + 0.01 - abs(cross)
             clear = (offset[0] - direction[1] * side * needed,
                      offset[1] + direction[0] * side * needed)
             move = WALKER_SIDESTEP_SPEED_M_S * dt_s * side
@@ -198,14 +205,18 @@ class Simulation:
                     and self.world.is_free(base_now[0] + clear[0], base_now[1] + clear[1],
                                            mover.radius_m)
                     and self.world.is_free(spot[0], spot[1], mover.radius_m)
-                    and math.dist(spot, robot) >= contact + 0.01):
+                    and math.dist(spot, robot) >= contact + WALKER_PASS_GAP_M):
                 self._walk_offset[index] = aside
                 self._waited_s[index] = 0.0
                 continue
-            self._waited_s[index] += dt_s
-            if self._waited_s[index] >= WALKER_PATIENCE_S:
-                self._walk_direction[index] *= -1.0
-                self._waited_s[index] = 0.0
+            self._wait(index, dt_s)
+
+    def _wait(self, index: int, dt_s: float) -> None:
+        """Let a walker wait dt_s; after WALKER_PATIENCE_S it turns back."""
+        self._waited_s[index] += dt_s
+        if self._waited_s[index] >= WALKER_PATIENCE_S:
+            self._walk_direction[index] *= -1.0
+            self._waited_s[index] = 0.0
 
     def _robot_in_way(self, now, ahead, direction, contact: float) -> bool:
         """Tell whether the robot stands in the way of a walker stepping from now to ahead."""
@@ -213,7 +224,7 @@ class Simulation:
         rx, ry = state.x - now[0], state.y - now[1]
         along = rx * direction[0] + ry * direction[1]
         across = abs(rx * direction[1] - ry * direction[0])
-        return (along > 0.0 and across < contact + 0.05
+        return (along > 0.0 and across < contact + WALKER_PASS_GAP_M
                 and math.dist(ahead, (state.x, state.y)) < contact + WALKER_GAP_M)
 
     def _back_to_path(self, radius_m: float, base, offset, dt_s: float, contact: float):
@@ -226,7 +237,7 @@ class Simulation:
         spot = (base[0] + nearer[0], base[1] + nearer[1])
         state = self.physics.state
         if (self.world.is_free(spot[0], spot[1], radius_m)
-                and math.dist(spot, (state.x, state.y)) >= contact + 0.01):
+                and math.dist(spot, (state.x, state.y)) >= contact + WALKER_PASS_GAP_M):
             return nearer
         return offset
 
