@@ -3,15 +3,21 @@
 PYTHON ?= python3
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test lint colcon-test bench clean
+.PHONY: setup demo scenarios test lint colcon-test bench clean
 
 setup:
 	@$(PYTHON) tools/bootstrap.py
 
+# The simulated robot tours the apartment (12 goals), then writes reports/demo_<time>/:
+# run.png, summary.json, an MCAP bag of every topic. DEMO_ARGS: e.g. --foxglove.
+DEMO_ARGS ?=
 demo: setup
-	@echo "Demo: kinematic robot simulation + text-command controller, each its own process,"
-	@echo "driven through a script of mecanum moves; Ctrl-C stops everything."
-	@./mecanum launch mecanum_bringup demo.launch.yaml
+	@./mecanum run mecanum_bringup demo $(DEMO_ARGS)
+
+# Every scenario file of mecanum_bringup, headless: a pass/fail table, JUnit XML.
+scenarios: setup
+	@./mecanum run mecanum_bringup run_scenarios src/mecanum_bringup/scenarios \
+	  --out reports/scenarios --junit reports/scenarios/junit.xml
 
 test: setup
 	@./mecanum exec python -m pytest $(PYTEST_ARGS)

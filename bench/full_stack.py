@@ -117,10 +117,10 @@ def main() -> int:
                         'first_failure': result.first_failure,
                         'nodes': [{'node': n, 'cpu_percent': c, 'peak_rss_mib': m}
                                   for n, c, m in rows]})
+        failure = f' ({result.first_failure})' if result.first_failure else ''
         print(f'\nrequested real-time factor {rtf:g}: achieved {sim / wall:.2f} '
               f'({sim:.1f} s simulated in {wall:.1f} s wall), verdict '
-              f'{results[-1]["verdict"]}' + (f' ({result.first_failure})'
-                                            if result.first_failure else ''))
+              f'{results[-1]["verdict"]}{failure}')
         print(f'{"node":<24} {"CPU % of a core":>16} {"peak RSS MiB":>13}')
         print(f'{"-" * 24} {"-" * 16} {"-" * 13}')
         for name, cpu, rss in rows:

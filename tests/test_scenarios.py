@@ -1,0 +1,120 @@
+"""
+Integration: the shipped scenario suite runs headless and every verdict is the expected one.
+
+run_scenarios runs each scenario file of mecanum_bringup/scenarios (but the demo's
+12-goal tour, which tests/test_demo.py runs) with the whole simulated robot, each in its
+own ROS domain and processes. Two scenarios must fail (a robot pushed into a wall, a
+goal with too short a timeout) and two expect refused goals (outside the authorised
+zone, in a wall): the harness must report all of them as expected, in its table, its
+exit code, its JUnit XML and each scenario's summary.json, and leave no process behind.
+A scenario given the wrong expectation must be reported UNEXPECTED with exit code 1.
+"""
+
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+import xml.etree.ElementTree as ElementTree
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[1]
+SCENARIOS = REPO / 'src/mecanum_bringup/scenarios'
+SUITE = sorted(path for path in SCENARIOS.glob('*.yaml') if path.stem != 'apartment_tour')
+MARKER = b'MECANUM_SCENARIO_RUN='
+
+
+def leftover_scenario_processes():
+    """Return the PIDs of live processes started by a scenario run (by their marker)."""
+    found = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                if MARKER in (entry / 'environ').read_bytes():
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
+def run_scenarios(paths, out: Path, timeout_s: float):
+    """Run run_scenarios on paths; return the completed process (output captured)."""
+    return subprocess.run(
+        [sys.executable, '-m', 'mecanum_bringup.scenario_runner', *map(str, paths),
+         '--out', str(out), '--junit', str(out / 'junit.xml'), '--quiet'],
+        capture_output=True, text=True, timeout=timeout_s,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
+
+
+def summary(out: Path, name: str) -> dict:
+    """Return a scenario's summary.json."""
+    return json.loads((out / name / 'summary.json').read_text())
+
+
+def test_the_suite_reports_every_scenario_as_expected(tmp_path):
+    assert len(SUITE) >= 8
+    result = run_scenarios(SUITE, tmp_path, timeout_s=1500)
+    print(result.stdout, result.stderr)
+    assert result.returncode == 0, result.stdout[-3000:]
+    assert f'{len(SUITE)} scenarios: {len(SUITE)} as expected, 0 unexpected, 0 errors' \
+        in result.stdout
+    # JUnit: one test case per scenario, none failed (a must-fail that failed is a pass).
+    suite = ElementTree.parse(tmp_path / 'junit.xml').getroot()
+    assert (suite.get('tests'), suite.get('failures'), suite.get('errors')) == (
+        str(len(SUITE)), '0', '0')
+    assert {case.get('name') for case in suite.iter('testcase')} == {p.stem for p in SUITE}
+    # The must-fail scenarios failed for the right reason.
+    pushed = summary(tmp_path, 'pushed_into_wall')
+    assert pushed['verdict'] == 'fail' and pushed['collisions'] >= 1
+    failed = [c['name'] for c in pushed['criteria'] if not c['passed']]
+    assert failed == ['no_collision']
+    timeout = summary(tmp_path, 'must_fail_timeout')
+    assert timeout['verdict'] == 'fail' and timeout['steps'][0]['outcome'] == 'timeout'
+    # Refused goals carry the navigator's error codes; the next goals are still reached.
+    zone = summary(tmp_path, 'goal_outside_zone_refused')
+    assert zone['verdict'] == 'pass'
+    assert zone['steps'][0]['outcome'] == 'refused'
+    assert 'outside the authorised zone' in zone['steps'][0]['error_message']
+    assert zone['steps'][1]['outcome'] == 'reached'
+    wall = summary(tmp_path, 'goal_in_wall_refused')
+    assert wall['verdict'] == 'pass'
+    assert all(step['outcome'] == 'refused' for step in wall['steps'])
+    commands = summary(tmp_path, 'text_commands')
+    assert [step['outcome'] for step in commands['steps']] == ['done'] * 7
+    # Every passing scenario that drives reached its goals without touching anything.
+    for path in SUITE:
+        result_summary = summary(tmp_path, path.stem)
+        assert (tmp_path / path.stem / 'run.png').read_bytes()[:4] == b'\x89PNG'
+        if result_summary['expected'] == 'pass':
+            assert result_summary['collisions'] == 0, path.stem
+            assert result_summary['goals_reached'] == sum(
+                1 for step in result_summary['steps'] if step['outcome'] == 'reached')
+    assert leftover_scenario_processes() == []
+
+
+def test_a_wrong_expectation_is_reported_unexpected(tmp_path):
+    """The same refused goal, with `expect: fail` written in the file: exit code 1."""
+    text = (SCENARIOS / 'goal_in_wall_refused.yaml').read_text()
+    assert 'expect: pass' in text
+    wrong = tmp_path / 'wrong_expectation.yaml'
+    wrong.write_text(text.replace('name: goal_in_wall_refused', 'name: wrong_expectation')
+                     .replace('expect: pass', 'expect: fail'))
+    result = run_scenarios([wrong], tmp_path / 'out', timeout_s=300)
+    assert result.returncode == 1, result.stdout
+    assert 'UNEXPECTED' in result.stdout
+    suite = ElementTree.parse(tmp_path / 'out' / 'junit.xml').getroot()
+    assert suite.get('failures') == '1'
+    assert leftover_scenario_processes() == []
+
+
+def test_an_invalid_scenario_file_is_a_clear_error(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('scenario:\n  name: bad\n  world: apartment\n  steps:\n'
+                   '  - goal: {x: 1.0, y: north}\n')
+    result = run_scenarios([bad], tmp_path / 'out', timeout_s=120)
+    assert result.returncode == 2
+    assert "bad.yaml: steps[0].goal.y: must be a number, not 'north'" in result.stderr
+    assert 'ERROR' in result.stdout
