@@ -347,11 +347,11 @@ class ObstacleLayer:
         """
         _check_finite('sensor_x', sensor_x)
         _check_finite('sensor_y', sensor_y)
-        points = _as_xy('points', points)
+        points = as_xy('points', points)
         valid = np.all(np.isfinite(points), axis=1)
         ignored = int(points.shape[0] - valid.sum())
-        directions = _as_xy('free_directions', [] if free_directions is None
-                            else free_directions)
+        directions = as_xy('free_directions', [] if free_directions is None
+                           else free_directions)
         norms = np.hypot(directions[:, 0], directions[:, 1])
         usable = np.all(np.isfinite(directions), axis=1) & (norms > 0.0)
         ignored += int(directions.shape[0] - usable.sum())
@@ -618,7 +618,7 @@ def _cells(coordinates: np.ndarray, size: int) -> np.ndarray:
     return np.clip(np.floor(coordinates), 0, size - 1).astype(np.int64)
 
 
-def _as_xy(name: str, points) -> np.ndarray:
+def as_xy(name: str, points) -> np.ndarray:
     """Return points as an (N, 2) float array or raise ValueError naming them."""
     try:
         array = np.asarray(points, dtype=np.float64)

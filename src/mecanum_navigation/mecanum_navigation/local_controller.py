@@ -65,6 +65,7 @@ from dataclasses import dataclass, field, fields
 import math
 from typing import Optional, Sequence, Tuple
 
+from mecanum_navigation.costmap import as_xy
 from mecanum_navigation.grid_search import BLOCKED, segment_cost
 from numba import njit
 import numpy as np
@@ -815,14 +816,13 @@ class LocalController:
             return int(np.argmin(scores))
         offsets = points - pose[:2]
         distances = np.hypot(offsets[:, 0], offsets[:, 1])
-        near = points[distances <= self._reach + p.robot_radius + p.collision_margin]
-        if near.shape[0] == 0:
+        within = distances <= self._reach + p.robot_radius + p.collision_margin
+        if not np.any(within):
             return int(np.argmin(scores))
         required = min(p.collision_margin, float(np.min(distances)) - p.robot_radius - 1e-3)
         limit = max(p.robot_radius + required, 0.0) ** 2
         # Nearest points first: a trajectory that hits something usually hits them.
-        near = near[np.argsort(distances[distances <= self._reach + p.robot_radius
-                                         + p.collision_margin])]
+        near = points[within][np.argsort(distances[within])]
         order = np.argsort(scores, kind='stable')[:int(np.count_nonzero(finite))]
         best = _first_clear(order.astype(np.int64), xs, ys,
                             np.ascontiguousarray(near[:, 0], dtype=np.float32),
@@ -960,14 +960,7 @@ def _as_vector(name: str, values) -> np.ndarray:
 
 def _as_points(name: str, values) -> np.ndarray:
     """Return (P, 2) float64 points without the rows holding NaN/inf, or raise ValueError."""
-    try:
-        array = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f'{name} must be (P, 2) numbers (x, y)') from None
-    if array.size == 0:
-        return np.zeros((0, 2))
-    if array.ndim != 2 or array.shape[1] != 2:
-        raise ValueError(f'{name} must have shape (P, 2), got {array.shape}')
+    array = as_xy(name, values)
     return array[np.all(np.isfinite(array), axis=1)]
 
 

@@ -592,7 +592,7 @@ def test_obstacle_points_must_be_pairs():
     """A malformed points array is a clear ValueError; rows with NaN are dropped."""
     controller = LocalController(PARAMS)
     path = [(0.0, 0.0), (1.0, 0.0)]
-    with pytest.raises(ValueError, match='obstacle_points must have shape'):
+    with pytest.raises(ValueError, match='obstacle_points must be an N x 2 array'):
         controller.compute_velocity((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), path, empty_grid(),
                                     obstacle_points=np.zeros((3, 3)))
     twist, status = controller.compute_velocity(
