@@ -363,24 +363,34 @@ class LikelihoodField:
 
 
 @njit(cache=True)
+def _laser_in_map(x, y, yaw, laser_x, laser_y, laser_yaw, origin_x, origin_y):
+    """Return the laser of a particle at (x, y, yaw): position from the map origin, cos, sin."""
+    c = math.cos(yaw)
+    s = math.sin(yaw)
+    return (x + c * laser_x - s * laser_y - origin_x, y + s * laser_x + c * laser_y - origin_y,
+            math.cos(yaw + laser_yaw), math.sin(yaw + laser_yaw))
+
+
+@njit(cache=True)
+def _beam_end_cell(lx, ly, ca, sa, reach, cos_b, sin_b, cos_o, sin_o, inv_res):
+    """Return the (continuous) map cell column, row where a beam of length reach ends."""
+    hx = lx + reach * (ca * cos_b - sa * sin_b)
+    hy = ly + reach * (sa * cos_b + ca * sin_b)
+    return (cos_o * hx + sin_o * hy) * inv_res, (-sin_o * hx + cos_o * hy) * inv_res
+
+
+@njit(cache=True)
 def _scan_log_likelihoods(xs, ys, yaws, laser_x, laser_y, laser_yaw, ranges, cos_b, sin_b,
                           table, off_map, origin_x, origin_y, cos_o, sin_o, inv_res, out):
     """out[i] = sum over beams of the log-likelihood table at particle i's beam end points."""
     rows, cols = table.shape
     for i in range(xs.shape[0]):
-        c = math.cos(yaws[i])
-        s = math.sin(yaws[i])
-        lx = xs[i] + c * laser_x - s * laser_y - origin_x
-        ly = ys[i] + s * laser_x + c * laser_y - origin_y
-        a = yaws[i] + laser_yaw
-        ca = math.cos(a)
-        sa = math.sin(a)
+        lx, ly, ca, sa = _laser_in_map(xs[i], ys[i], yaws[i], laser_x, laser_y, laser_yaw,
+                                       origin_x, origin_y)
         total = 0.0
         for j in range(ranges.shape[0]):
-            hx = lx + ranges[j] * (ca * cos_b[j] - sa * sin_b[j])
-            hy = ly + ranges[j] * (sa * cos_b[j] + ca * sin_b[j])
-            gx = (cos_o * hx + sin_o * hy) * inv_res
-            gy = (-sin_o * hx + cos_o * hy) * inv_res
+            gx, gy = _beam_end_cell(lx, ly, ca, sa, ranges[j], cos_b[j], sin_b[j], cos_o,
+                                    sin_o, inv_res)
             if gx >= 0.0 and gy >= 0.0 and gx < cols and gy < rows:
                 total += table[int(gy), int(gx)]
             else:
@@ -400,18 +410,11 @@ def _beam_log_likelihoods(xs, ys, yaws, laser_x, laser_y, laser_yaw, ranges, cos
     """
     rows, cols = table.shape
     for i in range(xs.shape[0]):
-        c = math.cos(yaws[i])
-        s = math.sin(yaws[i])
-        lx = xs[i] + c * laser_x - s * laser_y - origin_x
-        ly = ys[i] + s * laser_x + c * laser_y - origin_y
-        a = yaws[i] + laser_yaw
-        ca = math.cos(a)
-        sa = math.sin(a)
+        lx, ly, ca, sa = _laser_in_map(xs[i], ys[i], yaws[i], laser_x, laser_y, laser_yaw,
+                                       origin_x, origin_y)
         for j in range(ranges.shape[0]):
-            hx = lx + ranges[j] * (ca * cos_b[j] - sa * sin_b[j])
-            hy = ly + ranges[j] * (sa * cos_b[j] + ca * sin_b[j])
-            gx = (cos_o * hx + sin_o * hy) * inv_res
-            gy = (-sin_o * hx + cos_o * hy) * inv_res
+            gx, gy = _beam_end_cell(lx, ly, ca, sa, ranges[j], cos_b[j], sin_b[j], cos_o,
+                                    sin_o, inv_res)
             if gx >= 0.0 and gy >= 0.0 and gx < cols and gy < rows:
                 out[i, j] = table[int(gy), int(gx)]
                 if distances[int(gy), int(gx)] < skip_distance:
