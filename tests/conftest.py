@@ -14,7 +14,8 @@ import threading
 import time
 import uuid
 
-from mecanum_bringup.isolation import isolated_environment, lease_domain_id
+from mecanum_bringup.isolation import (
+    isolated_environment, lease_domain_id, processes_with_variable)
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -27,19 +28,7 @@ RUN_MARKER = 'MECANUM_TEST_RUN'
 
 def processes_with_marker(marker: str) -> list:
     """PIDs of live processes whose environment carries RUN_MARKER=marker."""
-    needle = f'{RUN_MARKER}={marker}'.encode()
-    found = []
-    for entry in Path('/proc').iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            if needle in (entry / 'environ').read_bytes().split(b'\0'):
-                state = (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0]
-                if state != 'Z':
-                    found.append(int(entry.name))
-        except (FileNotFoundError, ProcessLookupError, PermissionError):
-            continue
-    return found
+    return processes_with_variable(RUN_MARKER, marker)
 
 
 class RunningSystem:

@@ -29,6 +29,7 @@ import subprocess
 import sys
 import time
 
+from mecanum_bringup.scenario_runner import processes_with_marker
 import numpy as np
 import pytest
 
@@ -194,13 +195,4 @@ def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path):
         assert make_reader(stream).get_summary().statistics.message_count > 1000
     assert (report / 'bag' / 'metadata.yaml').exists()
     # Nothing of the run is left.
-    leftovers = [entry.name for entry in Path('/proc').iterdir() if entry.name.isdigit()
-                 and _has_marker(entry)]
-    assert leftovers == []
-
-
-def _has_marker(entry: Path) -> bool:
-    try:
-        return b'MECANUM_SCENARIO_RUN=' in (entry / 'environ').read_bytes()
-    except OSError:
-        return False
+    assert processes_with_marker() == []

@@ -17,6 +17,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ElementTree
 
+from mecanum_bringup.scenario_runner import processes_with_marker
 import pytest
 
 pytestmark = pytest.mark.integration
@@ -24,20 +25,6 @@ pytestmark = pytest.mark.integration
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / 'src/mecanum_bringup/scenarios'
 SUITE = sorted(path for path in SCENARIOS.glob('*.yaml') if path.stem != 'apartment_tour')
-MARKER = b'MECANUM_SCENARIO_RUN='
-
-
-def leftover_scenario_processes():
-    """Return the PIDs of live processes started by a scenario run (by their marker)."""
-    found = []
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                if MARKER in (entry / 'environ').read_bytes():
-                    found.append(int(entry.name))
-            except OSError:
-                continue
-    return found
 
 
 def run_scenarios(paths, out: Path, timeout_s: float):
@@ -92,7 +79,7 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path):
             assert result_summary['collisions'] == 0, path.stem
             assert result_summary['goals_reached'] == sum(
                 1 for step in result_summary['steps'] if step['outcome'] == 'reached')
-    assert leftover_scenario_processes() == []
+    assert processes_with_marker() == []
 
 
 def test_a_wrong_expectation_is_reported_unexpected(tmp_path):
@@ -107,7 +94,7 @@ def test_a_wrong_expectation_is_reported_unexpected(tmp_path):
     assert 'UNEXPECTED' in result.stdout
     suite = ElementTree.parse(tmp_path / 'out' / 'junit.xml').getroot()
     assert suite.get('failures') == '1'
-    assert leftover_scenario_processes() == []
+    assert processes_with_marker() == []
 
 
 def test_an_invalid_scenario_file_is_a_clear_error(tmp_path):

@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 import random
 import tempfile
-from typing import Dict, Mapping, Optional
+from typing import Dict, List, Mapping, Optional
 
 # Domain IDs that are valid on Linux with the default DDS port mapping; 0 (the
 # default everyone uses) is left out so leased domains never meet stray nodes.
@@ -78,3 +78,28 @@ def isolated_environment(base: Mapping[str, str], domain_id: Optional[int] = Non
 def current_domain_id(environ: Mapping[str, str] = os.environ) -> int:
     """Return the ROS_DOMAIN_ID in effect (0 when unset)."""
     return int(environ.get('ROS_DOMAIN_ID', '0') or 0)
+
+
+def processes_with_variable(name: str, value: Optional[str] = None) -> List[int]:
+    """
+    Return the PIDs of live processes (not zombies, not this one) with name=value set.
+
+    value None: name set to anything. A run marks its processes this way (a variable in
+    the environment they inherit) so that whatever survives it can be found and killed.
+    """
+    prefix = f'{name}='.encode()
+    needle = prefix + value.encode() if value is not None else None
+    found = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            variables = (entry / 'environ').read_bytes().split(b'\0')
+            if needle in variables if needle is not None else any(
+                    v.startswith(prefix) for v in variables):
+                state = (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0]
+                if state != 'Z':
+                    found.append(int(entry.name))
+        except (FileNotFoundError, ProcessLookupError, PermissionError):
+            continue
+    return found

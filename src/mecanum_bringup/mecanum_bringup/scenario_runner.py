@@ -33,6 +33,7 @@ and skips the others.
 
 import argparse
 from dataclasses import dataclass
+import json
 import math
 import os
 from pathlib import Path
@@ -44,7 +45,8 @@ import time
 from typing import Callable, Dict, List, Optional, Sequence
 import uuid
 
-from mecanum_bringup.isolation import isolated_environment, lease_domain_id
+from mecanum_bringup.isolation import (
+    isolated_environment, lease_domain_id, processes_with_variable)
 from mecanum_bringup.scenario import (
     CmdVelStep, CommandStep, error_label, find_scenarios, GoalStep, judge, load_scenario,
     RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult, WaitStep)
@@ -207,19 +209,9 @@ class SystemProcess:
             self._log.close()
 
 
-def processes_with_marker(marker: str) -> List[int]:
-    """Return the PIDs of live processes whose environment has RUN_MARKER=marker."""
-    needle = f'{RUN_MARKER}={marker}'.encode()
-    found = []
-    for entry in Path('/proc').iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            if needle in (entry / 'environ').read_bytes().split(b'\0'):
-                found.append(int(entry.name))
-        except (FileNotFoundError, ProcessLookupError, PermissionError):
-            continue
-    return found
+def processes_with_marker(marker: Optional[str] = None) -> List[int]:
+    """Return the PIDs of processes of the scenario run marked marker (None: of any run)."""
+    return processes_with_variable(RUN_MARKER, marker)
 
 
 # --- one scenario ----------------------------------------------------------------------
@@ -282,7 +274,6 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     summary = summary_json(scenario, record, verdict, {
         'wall_time_s': round(wall, 1),
         'real_time_factor': options.real_time_factor or scenario.real_time_factor})
-    import json
     (run_dir / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n',
                                           encoding='utf-8')
     for name, track in (('truth', record.truth), ('estimate', record.estimate)):

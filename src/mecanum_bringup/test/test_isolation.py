@@ -1,12 +1,14 @@
 """Tests of ROS domain leasing across real processes."""
 
+import os
 import random
 import subprocess
 import sys
 import textwrap
 
 from mecanum_bringup.isolation import (
-    current_domain_id, isolated_environment, LEASABLE_DOMAIN_IDS, lease_domain_id)
+    current_domain_id, isolated_environment, LEASABLE_DOMAIN_IDS, lease_domain_id,
+    processes_with_variable)
 
 
 def test_leases_in_one_process_differ_and_are_released():
@@ -42,3 +44,16 @@ def test_isolated_environment_defaults_to_localhost_but_respects_user_choice():
     user = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET', 'ROS_DOMAIN_ID': '3'}
     assert isolated_environment(user) == user
     assert current_domain_id(user) == 3 and current_domain_id({}) == 0
+
+
+def test_processes_are_found_by_a_variable_in_their_environment():
+    env = dict(os.environ, MECANUM_ISOLATION_TEST='run-1')
+    child = subprocess.Popen(['sleep', '30'], env=env)
+    try:
+        assert processes_with_variable('MECANUM_ISOLATION_TEST', 'run-1') == [child.pid]
+        assert processes_with_variable('MECANUM_ISOLATION_TEST') == [child.pid]
+        assert processes_with_variable('MECANUM_ISOLATION_TEST', 'run-2') == []
+    finally:
+        child.kill()
+        child.wait()
+    assert processes_with_variable('MECANUM_ISOLATION_TEST') == []
