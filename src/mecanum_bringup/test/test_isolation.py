@@ -5,6 +5,7 @@ import random
 import subprocess
 import sys
 import textwrap
+import time
 
 from mecanum_bringup.isolation import (
     current_domain_id, isolated_environment, LEASABLE_DOMAIN_IDS, lease_domain_id,
@@ -50,6 +51,12 @@ def test_processes_are_found_by_a_variable_in_their_environment():
     env = dict(os.environ, MECANUM_ISOLATION_TEST='run-1')
     child = subprocess.Popen(['sleep', '30'], env=env)
     try:
+        # Popen returns once exec has begun; the kernel fills in the new program's
+        # environment a moment later (seen empty on a loaded CI machine), so wait for it.
+        deadline = time.monotonic() + 10
+        while not processes_with_variable('MECANUM_ISOLATION_TEST') and (
+                time.monotonic() < deadline):
+            time.sleep(0.01)
         assert processes_with_variable('MECANUM_ISOLATION_TEST', 'run-1') == [child.pid]
         assert processes_with_variable('MECANUM_ISOLATION_TEST') == [child.pid]
         assert processes_with_variable('MECANUM_ISOLATION_TEST', 'run-2') == []
