@@ -107,9 +107,26 @@ def ros_env():
         yield env
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Keep each phase's report on the test item, so fixtures can tell a failed test."""
+    outcome = yield
+    report = outcome.get_result()
+    setattr(item, f'report_{report.when}', report)
+
+
+#: Lines of a system's output printed when its test failed (CI keeps nothing else).
+FAILED_OUTPUT_LINES = 150
+
+
 @pytest.fixture
-def start_system(ros_env):
-    """Start systems with launch_runner in the test's domain; kill leftovers at the end."""
+def start_system(ros_env, request):
+    """
+    Start systems with launch_runner in the test's domain; kill leftovers at the end.
+
+    When the test failed, the end of each system's output (its nodes' logs) is printed,
+    so that the CI log shows what the nodes said.
+    """
     systems = []
 
     def start(*launch_args: str) -> RunningSystem:
@@ -117,6 +134,12 @@ def start_system(ros_env):
         systems.append(system)
         return system
     yield start
+    report = getattr(request.node, 'report_call', None)
+    if report is not None and report.failed:
+        for system in systems:
+            tail = system.output().splitlines()[-FAILED_OUTPUT_LINES:]
+            print(f'--- last {len(tail)} lines of {system.process.args[3:]} ---')
+            print('\n'.join(tail))
     for system in systems:
         if system.process.poll() is None:
             system.stop(signal.SIGKILL)
