@@ -63,6 +63,11 @@ def test_lidar_sees_the_wall_at_its_known_distance(simulation):
     assert ('base_link', 'laser') in mounts
 
 
+def stamp_s(message) -> float:
+    """A message's header stamp in seconds."""
+    return message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
+
+
 def test_forward_one_metre_moves_the_true_pose_one_metre(simulation):
     system, test_node = simulation
     truth = test_node.record(Odometry, 'ground_truth/odom')
@@ -74,9 +79,14 @@ def test_forward_one_metre_moves_the_true_pose_one_metre(simulation):
         assert time.monotonic() < deadline
         time.sleep(0.05)
     commands.publish(String(data='forward 1 m'))
+    moving = truth.wait_for(lambda m: m.twist.twist.linear.x > 0.1, timeout=30.0)
     status.wait_for(lambda m: m.data.startswith('done: forward'), timeout=30.0)
-    time.sleep(1.5)  # let the robot come to rest
-    end = truth.latest().pose.pose.position
+    # The end is the first true pose at rest after the move, found by its stamp (sim
+    # time), not by the wall clock: a loaded machine may deliver ground truth late.
+    moved_since = stamp_s(moving) + 1.0
+    end = truth.wait_for(
+        lambda m: stamp_s(m) > moved_since and abs(m.twist.twist.linear.x) < 0.002,
+        timeout=30.0).pose.pose.position
     print(f'forward 1 m moved the true pose {end.x - start.x:.4f} m, y {end.y - start.y:.4f} m')
     # Open-loop timed move (5 s at 0.2 m/s) through acceleration limits, PID and motor
     # lag: the ramp-up lag and the stop overshoot nearly cancel. Tolerance: 5 cm.
