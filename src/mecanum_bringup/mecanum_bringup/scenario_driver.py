@@ -16,12 +16,12 @@ import time
 from typing import Callable, List, Optional, Tuple
 
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from mecanum_control.node_main import make_executor
 from mecanum_interfaces.action import NavigateToPose
 from nav_msgs.msg import Odometry, Path
 import numpy as np
 import rclpy
 from rclpy.action import ActionClient
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String, UInt32
@@ -72,7 +72,7 @@ class ScenarioDriver:
         self.cmd_vel_pub = node.create_publisher(Twist, 'cmd_vel', 10)
         self.command_pub = node.create_publisher(String, 'control_command', 10)
         self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = make_executor(self.context)
         self.executor.add_node(node)
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)

@@ -26,11 +26,12 @@ Zones (``polygons``, Nav2's format): ``NAME.type`` polygon | circle, ``NAME.poin
 (rad/s, 0.5), ``NAME.time_before_collision`` (s, 2.0), ``NAME.simulation_time_step``
 (s, 0.1), ``NAME.enabled`` (true), ``NAME.visualize`` (true here; Nav2: false).
 Visualized zones are published as geometry_msgs/PolygonStamped in base_frame_id on
-``~/NAME`` (transient local; circles as 32-gons) at start and with every command.
+``~/NAME`` (transient local; circles as 32-gons) at start and, while subscribed, with
+every command.
 
 State: Nav2 publishes nav2_msgs/CollisionMonitorState, which this setup does not have;
 ``state_topic`` ('collision_monitor_state', '' for none) carries a std_msgs/String
-"ACTION polygon_name" instead, per command, ACTION being Nav2's name of the action
+"ACTION polygon_name" instead, per command while subscribed, ACTION being Nav2's name of the action
 (DO_NOTHING, STOP, SLOWDOWN, APPROACH, LIMIT), e.g. "STOP PolygonStop",
 "STOP invalid source", "DO_NOTHING". Nav2's footprint_topic, velocity_polygon,
 base_shift_correction and stop_pub_timeout are not supported.
@@ -309,19 +310,27 @@ class CollisionMonitorNode(Node):
             else:
                 self.get_logger().info(f'Robot to {result.action} due to {zone}: '
                                        f'{result.reason or zone}')
-        if self.state_pub is not None:
+        if self.state_pub is not None and self.state_pub.get_subscription_count() > 0:
             self.state_pub.publish(String(data=f'{action} {zone}'.strip()))
-        self.publish_polygons()
+        self.publish_polygons(only_if_subscribed=True)
 
-    def publish_polygons(self) -> None:
-        """Publish the visualized zones in base_frame_id, stamped now."""
+    def publish_polygons(self, only_if_subscribed: bool = False) -> None:
+        """
+        Publish the visualized zones in base_frame_id, stamped now.
+
+        only_if_subscribed: skip zones nobody listens to (the per-command refresh;
+        the publishers are latched, so a late subscriber still gets the first one).
+        """
         stamp = self.get_clock().now().to_msg()
         for zone in self.visualized:
+            publisher = self.polygon_pubs[zone.name]
+            if only_if_subscribed and publisher.get_subscription_count() == 0:
+                continue
             msg = PolygonStamped()
             msg.header.stamp = stamp
             msg.header.frame_id = self.base_frame_id
             msg.polygon.points = [Point32(x=x, y=y, z=0.0) for x, y in zone_outline(zone)]
-            self.polygon_pubs[zone.name].publish(msg)
+            publisher.publish(msg)
 
 
 def main(args=None) -> int:

@@ -12,7 +12,7 @@ time), ``scan`` (sensor_msgs/LaserScan in ``laser_frame_id``, REP-117: +inf no
 return), ``ground_truth/odom`` (nav_msgs/Odometry of base_link in the simulator's
 ``world_frame_id``; for evaluation only, never for the robot's own software) and
 ``ground_truth/moving_obstacles`` (geometry_msgs/PoseArray: the walking people's centres,
-in the world order, with the ground truth; evaluation only),
+in the world order, with the ground truth while subscribed; evaluation only),
 ``simulation/collisions`` (std_msgs/UInt32, transient local: the number of
 collisions so far) and, with ``publish_laser_tf`` (true), ``/tf_static`` base_link ->
 laser as mounted (until the robot description publishes it).
@@ -56,6 +56,11 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import UInt32
 from tf2_msgs.msg import TFMessage
+
+
+#: Wall seconds between two services of ROS callbacks (parameter services) in the
+#: stepping loop: spinning costs a wake-up, and nothing here is latency-critical.
+SPIN_PERIOD_S = 0.05
 
 
 def stamp(time_s: float) -> Time:
@@ -197,7 +202,7 @@ class SimulatorNode(Node):
         msg = planar_odometry(stamp(now), self.world_frame_id, self.base_frame_id,
                               (state.x, state.y, state.yaw), (state.vx, state.vy, state.wz))
         self.truth_pub.publish(msg)
-        if self.sim.world.moving_obstacles:
+        if self.sim.world.moving_obstacles and self.movers_pub.get_subscription_count() > 0:
             movers = PoseArray()
             movers.header = msg.header
             for x, y, _ in self.sim.moving_circles():
@@ -207,7 +212,7 @@ class SimulatorNode(Node):
             self.movers_pub.publish(movers)
 
     def run(self) -> None:
-        """Step forever, paced to real_time_factor, serving ROS callbacks every 10 ms."""
+        """Step forever, paced to real_time_factor, serving ROS callbacks every SPIN_PERIOD_S."""
         executor = make_executor(self.context)
         executor.add_node(self)
         start = next_spin = time.monotonic()
@@ -216,7 +221,7 @@ class SimulatorNode(Node):
             now = time.monotonic()
             if now >= next_spin:  # parameter services; spinning every step costs 3x
                 executor.spin_once(timeout_sec=0.0)
-                next_spin = now + 0.01
+                next_spin = now + SPIN_PERIOD_S
             if self.real_time_factor > 0.0:
                 wait = start + self.sim.time_s / self.real_time_factor - now
                 if wait > 0.0:
