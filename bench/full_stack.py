@@ -3,15 +3,18 @@
 Benchmark: the whole simulated robot's real-time factor and its CPU and memory per node.
 
 Runs a scenario (default: the demo's apartment tour, scenarios/apartment_tour.yaml)
-with the scenario runner, at each requested real_time_factor, and while the steps run
-samples every node process (/proc: CPU time, resident memory) and the runner itself.
-Prints, per real_time_factor asked: the real-time factor achieved (simulated seconds of
-the steps / wall seconds), the verdict, and a table per node: CPU (% of one core,
-mean over the steps), peak RSS (MiB). The machine's core count bounds what the sum
-of CPU can be: a sum near 100 % x cores means the stack is CPU bound.
+with the scenario runner, at each requested real_time_factor, in each mode: standalone
+(every node its own process: the table is per node) and composed (the scenario
+runner's default: the control chain and navigation in one container process each,
+mecanum_bringup config/composition.yaml: the table is per process). While the steps run
+it samples every process (/proc: CPU time, resident memory) and the runner itself.
+Prints, per run: the real-time factor achieved (simulated seconds of the steps / wall
+seconds), the verdict, and the table: CPU (% of one core, mean over the steps), peak
+RSS (MiB). The machine's core count bounds what the sum of CPU can be: a sum near
+100 % x cores means the stack is CPU bound.
 
 Run:  ./mecanum exec python bench/full_stack.py [--scenario FILE] [--rtf 1 2 5]
-      [--json FILE]
+      [--modes standalone composed] [--json FILE]
 """
 
 import argparse
@@ -97,36 +100,50 @@ def main() -> int:
     parser.add_argument('--scenario', type=Path,
                         default=REPO / 'src/mecanum_bringup/scenarios/apartment_tour.yaml')
     parser.add_argument('--rtf', type=float, nargs='+', default=[1.0])
+    parser.add_argument('--modes', nargs='+', choices=['standalone', 'composed'],
+                        default=['standalone', 'composed'])
     parser.add_argument('--json', type=Path)
     options = parser.parse_args()
     scenario = load_scenario(options.scenario)
     results = []
     print(f'full stack: scenario {scenario.name} ({len(scenario.steps)} steps), '
           f'{os.cpu_count()} cores')
-    for rtf in options.rtf:
+    runs = [(mode, rtf) for rtf in options.rtf for mode in options.modes]
+    for mode, rtf in runs:
         sampler = Sampler()
         with tempfile.TemporaryDirectory() as directory:
             result = run_scenario(scenario, RunOptions(
-                Path(directory), real_time_factor=rtf, on_system=sampler))
-        wall = sampler.wall[1] - sampler.wall[0]
+                Path(directory), real_time_factor=rtf, on_system=sampler,
+                compose=mode == 'composed'))
+        wall = max(sampler.wall[1] - sampler.wall[0], 1e-9)
         sim = result.sim_time_s or 0.0
         rows = sampler.rows()
-        results.append({'requested_rtf': rtf, 'achieved_rtf': sim / wall if wall else None,
+        results.append({'mode': mode, 'requested_rtf': rtf,
+                        'achieved_rtf': sim / wall if wall else None,
                         'sim_s': sim, 'wall_s': wall,
                         'verdict': result.verdict.verdict if result.verdict else None,
                         'first_failure': result.first_failure,
-                        'nodes': [{'node': n, 'cpu_percent': c, 'peak_rss_mib': m}
-                                  for n, c, m in rows]})
+                        'processes': [{'process': n, 'cpu_percent': c, 'peak_rss_mib': m}
+                                      for n, c, m in rows]})
         failure = f' ({result.first_failure})' if result.first_failure else ''
-        print(f'\nrequested real-time factor {rtf:g}: achieved {sim / wall:.2f} '
+        print(f'\n{mode}, requested real-time factor {rtf:g}: achieved {sim / wall:.2f} '
               f'({sim:.1f} s simulated in {wall:.1f} s wall), verdict '
               f'{results[-1]["verdict"]}{failure}')
-        print(f'{"node":<24} {"CPU % of a core":>16} {"peak RSS MiB":>13}')
+        unit = 'node' if mode == 'standalone' else 'process'
+        print(f'{unit:<24} {"CPU % of a core":>16} {"peak RSS MiB":>13}')
         print(f'{"-" * 24} {"-" * 16} {"-" * 13}')
         for name, cpu, rss in rows:
             print(f'{name:<24} {cpu:>16.1f} {rss:>13.1f}')
         print(f'{"total":<24} {sum(r[1] for r in rows):>16.1f} '
               f'{sum(r[2] for r in rows):>13.1f}')
+    print(f'\n{"mode":<11} {"requested":>9} {"achieved":>8} {"verdict":>8} '
+          f'{"CPU % of a core":>16} {"RSS MiB":>8} {"CPU per sim s":>14}')
+    for run in results:
+        cpu = sum(p['cpu_percent'] for p in run['processes'])
+        rss = sum(p['peak_rss_mib'] for p in run['processes'])
+        per_sim = cpu / 100.0 / run['achieved_rtf'] if run['achieved_rtf'] else float('nan')
+        print(f'{run["mode"]:<11} {run["requested_rtf"]:>9g} {run["achieved_rtf"]:>8.2f} '
+              f'{str(run["verdict"]):>8} {cpu:>16.1f} {rss:>8.0f} {per_sim:>12.2f} s')
     if options.json:
         options.json.write_text(json.dumps(results, indent=1))
     return 0

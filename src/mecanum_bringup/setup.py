@@ -41,6 +41,7 @@ setup(
             'foxglove_bridge = mecanum_bringup.foxglove_bridge:main',
             'run_scenarios = mecanum_bringup.scenario_runner:main',
             'demo = mecanum_bringup.demo:main',
+            'node_container = mecanum_bringup.node_container:main',
         ],
     },
 )

@@ -70,6 +70,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='serve the running system to Foxglove on ws://localhost:8765')
     parser.add_argument('--no-record', action='store_true', help='do not record a bag')
     parser.add_argument('--scenario', default=None, help='another scenario file to run')
+    parser.add_argument('--no-compose', action='store_true',
+                        help='run every node in its own process (default: composed)')
     options = parser.parse_args(argv)
     if options.real_time_factor is not None and not (
             math.isfinite(options.real_time_factor) and options.real_time_factor > 0.0):
@@ -93,7 +95,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     signal.signal(signal.SIGINT, on_sigint)
     result = run_scenario(scenario, RunOptions(
         out, options.real_time_factor, record=not options.no_record,
-        foxglove=options.foxglove, progress=lambda text: print(text, flush=True)))
+        foxglove=options.foxglove, progress=lambda text: print(text, flush=True),
+        compose=not options.no_compose))
     run_dir = out / scenario.name
     summary = json.loads((run_dir / 'summary.json').read_text())
     print()

@@ -7,7 +7,8 @@ Usage (``./mecanum launch`` wraps this)::
     python -m mecanum_bringup.launch_runner PATH/TO/FILE.launch.yaml [name:=value ...]
 
 Each node runs as its own process in its own process group, started with the
-same ``--ros-args`` command line ``launch_ros`` would build. Its output lines
+same ``--ros-args`` command line ``launch_ros`` would build; with ``--compose``,
+groups of nodes share a process instead (:mod:`mecanum_bringup.composition`). Its output lines
 are prefixed with ``[node_name]``. Nodes marked ``respawn`` are restarted after
 ``respawn_delay``; a node marked ``on_exit: shutdown`` stops the whole system
 when it exits (the runner then exits with that node's code). On Ctrl-C or
@@ -27,6 +28,7 @@ import threading
 import time
 from typing import Dict, List, Mapping, Optional, TextIO
 
+from mecanum_bringup.composition import compose, load_composition
 from mecanum_bringup.isolation import isolated_environment, lease_domain_id
 from mecanum_bringup.system_description import (
     default_find_package_share, description_file, load_system, NodeProcess,
@@ -212,6 +214,11 @@ def resolve_launch_file(package_or_path: str, file_name: Optional[str]) -> Path:
     raise SystemDescriptionError(f'no launch file {file_name!r} in package {package_or_path!r}')
 
 
+def default_composition_file() -> Path:
+    """Return mecanum_bringup's config/composition.yaml (installed share)."""
+    return Path(default_find_package_share('mecanum_bringup')) / 'config' / 'composition.yaml'
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Command line entry point; returns the process exit code."""
     parser = argparse.ArgumentParser(
@@ -225,6 +232,11 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help='print the launch arguments and their values, then exit')
     parser.add_argument('--print', dest='print_only', action='store_true',
                         help='print the command of every node, then exit')
+    parser.add_argument('--compose', action='store_true',
+                        help='run groups of nodes in one process each (node_container)')
+    parser.add_argument('--composition', type=Path, metavar='FILE',
+                        help='the groups for --compose (default: mecanum_bringup '
+                             'config/composition.yaml)')
     options = parser.parse_args(argv)
     file_name = None
     rest = list(options.rest)
@@ -233,6 +245,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     try:
         path = resolve_launch_file(options.package_or_path, file_name)
         system = load_system(path, parse_launch_arguments(rest))
+        if options.compose:
+            system = compose(system, load_composition(
+                options.composition or default_composition_file()))
     except (SystemDescriptionError, LookupError) as error:
         print(f'[runner] error: {error}', file=sys.stderr)
         return 2

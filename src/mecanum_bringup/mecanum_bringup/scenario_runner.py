@@ -4,7 +4,8 @@ run_scenarios: run scenario files with the whole simulated robot and judge them.
 Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``)::
 
     ./mecanum run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
-        [--junit FILE] [--real-time-factor X] [--record] [--foxglove] [--quiet]
+        [--junit FILE] [--real-time-factor X] [--record] [--foxglove] [--no-compose]
+        [--quiet]
 
 PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario` for the
 format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
@@ -13,7 +14,10 @@ discovery, in its own processes (mecanum_bringup robot.launch through the launch
 runner: simulator, control stack on the simulated ESP32, description, EKF, map_server +
 amcl, navigator, velocity smoother, collision monitor, robot_controller), headless, on
 simulated time, and every one of those processes is gone when the scenario ends,
-whatever happened.
+whatever happened. The nodes run composed (launch runner ``--compose``: the control
+chain in one process, localisation and navigation in another, as Nav2's
+use_composition), which costs far less CPU on simulated time; ``--no-compose`` runs
+each node in its own process.
 
 The runner drives the steps (NavigateToPose goals, text commands on
 ``control_command``, raw twists on ``cmd_vel`` below the collision monitor, waits) and
@@ -85,6 +89,8 @@ class RunOptions:
     foxglove: bool = False
     progress: Optional[Progress] = None
     status_period_s: float = 10.0
+    #: Group the nodes into containers (launch runner --compose).
+    compose: bool = True
     #: Called with the SystemProcess once it is up, and with None when the steps end
     #: (for benchmarks that watch the node processes).
     on_system: Optional[Callable[[Optional['SystemProcess']], None]] = None
@@ -146,14 +152,16 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
 class SystemProcess:
     """The launch runner running one scenario's system; output to a log file and memory."""
 
-    def __init__(self, launch_file: Path, env: Dict[str, str], log_file: Path):
+    def __init__(self, launch_file: Path, env: Dict[str, str], log_file: Path,
+                 compose: bool = True):
         """Start the launch runner in its own session, with a marker in its environment."""
         self.marker = uuid.uuid4().hex
         self.lines: List[str] = []
         self._lock = threading.Lock()
         self._log = open(log_file, 'w', encoding='utf-8')
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'mecanum_bringup.launch_runner', str(launch_file)],
+            [sys.executable, '-m', 'mecanum_bringup.launch_runner',
+             *(['--compose'] if compose else []), str(launch_file)],
             env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, text=True, start_new_session=True)
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -235,7 +243,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     with lease_domain_id() as lease:
         env = isolated_environment(os.environ, lease.domain_id)
         env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        system = SystemProcess(launch_file, env, run_dir / 'system.log')
+        system = SystemProcess(launch_file, env, run_dir / 'system.log', options.compose)
         driver = None
         try:
             from mecanum_bringup.scenario_driver import ScenarioDriver
@@ -447,6 +455,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='record every topic to DIR/NAME/bag (MCAP rosbag2)')
     parser.add_argument('--foxglove', action='store_true',
                         help='serve the running system to Foxglove (ws://localhost:8765)')
+    parser.add_argument('--no-compose', action='store_true',
+                        help='run every node in its own process (default: composed)')
     parser.add_argument('--quiet', action='store_true', help='print only the table')
     options = parser.parse_args(argv)
     if options.real_time_factor is not None and not (
@@ -471,7 +481,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             results.append(ScenarioResult(Path(file).stem, 'pass', error=str(error)))
     say = (lambda text: None) if options.quiet else (lambda text: print(text, flush=True))
     run_options = RunOptions(Path(options.out), options.real_time_factor, options.record,
-                             options.foxglove, say)
+                             options.foxglove, say, compose=not options.no_compose)
 
     def on_sigint(_signum, _frame) -> None:
         INTERRUPTED.set()

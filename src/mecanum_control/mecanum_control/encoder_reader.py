@@ -31,8 +31,8 @@ from tf2_msgs.msg import TFMessage
 class EncoderReader(Node):
     """Turns encoder counters into joint states and odometry."""
 
-    def __init__(self):
-        super().__init__('encoder_reader')
+    def __init__(self, **node_options):
+        super().__init__('encoder_reader', **node_options)
         config = declare_robot_config(self)
         self.joint_names = list(config.wheel_joint_names)
         self.odom_frame_id = self.declare_parameter('odom_frame_id', 'odom').value

@@ -55,8 +55,8 @@ BOARD_MESSAGES = (proto.EncoderTicks, proto.ImuSample, proto.BoardStatus)
 class HardwareInterface(Node):
     """Bridges ROS topics and the ESP32's serial protocol."""
 
-    def __init__(self):
-        super().__init__('hardware_interface')
+    def __init__(self, **node_options):
+        super().__init__('hardware_interface', **node_options)
         config = declare_robot_config(self)
         self.board_command_timeout_ms = config.board_command_timeout_ms
         self.port = self.declare_parameter('port', '/dev/esp32').value

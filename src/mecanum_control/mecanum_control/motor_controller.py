@@ -39,8 +39,8 @@ STATUS_LEVELS = {'ok': DiagnosticStatus.OK, 'waiting': DiagnosticStatus.OK,
 class MotorController(Node):
     """Limits cmd_vel and turns it into four wheel speed targets."""
 
-    def __init__(self):
-        super().__init__('motor_controller')
+    def __init__(self, **node_options):
+        super().__init__('motor_controller', **node_options)
         config = declare_robot_config(self)
         cmd_timeout_s = positive('cmd_timeout_s',
                                  self.declare_parameter('cmd_timeout_s', 0.5).value)

@@ -44,8 +44,8 @@ PLAUSIBLE_SPEED_FACTOR = 4.0
 class VelocityController(Node):
     """Closes the wheel speed loops."""
 
-    def __init__(self):
-        super().__init__('velocity_controller')
+    def __init__(self, **node_options):
+        super().__init__('velocity_controller', **node_options)
         config = declare_robot_config(self)
         self.joint_names = list(config.wheel_joint_names)
         self.max_wheel_speed_rad_s = config.max_wheel_speed_rad_s

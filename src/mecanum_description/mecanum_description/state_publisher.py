@@ -51,8 +51,8 @@ def transform_message(transform: Transform, stamp: Time, frame_prefix: str) -> T
 class StatePublisher(Node):
     """Publishes the robot description and its joints' transforms."""
 
-    def __init__(self):
-        super().__init__('robot_state_publisher')
+    def __init__(self, **node_options):
+        super().__init__('robot_state_publisher', **node_options)
         description = self.declare_parameter(
             'robot_description', '',
             ParameterDescriptor(read_only=True, description='the robot URDF (XML)')).value

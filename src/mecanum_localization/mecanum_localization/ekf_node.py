@@ -68,9 +68,9 @@ def covariance_6(covariance: np.ndarray, indices: Sequence[int]) -> List[float]:
 class EkfNode(Node):
     """Fuses odometry, IMU, pose and twist messages into odometry/filtered and /tf."""
 
-    def __init__(self):
+    def __init__(self, **node_options):
         super().__init__('ekf_filter_node',
-                         automatically_declare_parameters_from_overrides=True)
+                         automatically_declare_parameters_from_overrides=True, **node_options)
         params = {name: parameter.value
                   for name, parameter in self.get_parameters_by_prefix('').items()}
         self.config: EkfConfig = parse_ekf_config(params)

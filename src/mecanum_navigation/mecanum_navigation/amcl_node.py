@@ -79,8 +79,8 @@ FILTER_PARAMETERS = (
 class AmclNode(Node):
     """Adaptive Monte Carlo localisation: map -> odom from scans, odometry and a map."""
 
-    def __init__(self):
-        super().__init__('amcl')
+    def __init__(self, **node_options):
+        super().__init__('amcl', **node_options)
         defaults = AmclConfig()
         values = {name: self._declare(name, getattr(defaults, name))
                   for name in FILTER_PARAMETERS}

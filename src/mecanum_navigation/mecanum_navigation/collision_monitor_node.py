@@ -125,8 +125,8 @@ class _Source:
 class CollisionMonitorNode(Node):
     """Limits every command by the zones around the robot and the laser data."""
 
-    def __init__(self):
-        super().__init__('collision_monitor')
+    def __init__(self, **node_options):
+        super().__init__('collision_monitor', **node_options)
         dynamic = ParameterDescriptor(dynamic_typing=True)
         self.base_frame_id = str(self.declare_parameter('base_frame_id', 'base_link').value)
         cmd_in = str(self.declare_parameter('cmd_vel_in_topic', 'cmd_vel_smoothed').value)

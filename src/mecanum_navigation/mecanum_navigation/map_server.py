@@ -26,8 +26,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 class MapServer(Node):
     """Publishes one map, latched, and serves it."""
 
-    def __init__(self):
-        super().__init__('map_server')
+    def __init__(self, **node_options):
+        super().__init__('map_server', **node_options)
         yaml_filename = str(self.declare_parameter('yaml_filename', '').value)
         topic_name = str(self.declare_parameter('topic_name', 'map').value)
         frame_id = str(self.declare_parameter('frame_id', 'map').value)

@@ -95,8 +95,8 @@ MAX_PENDING_SCANS = 5
 class NavigatorNode(Node):
     """NavigateToPose action server and goal_pose listener driving the Navigator."""
 
-    def __init__(self):
-        super().__init__('navigator')
+    def __init__(self, **node_options):
+        super().__init__('navigator', **node_options)
         config = declare_robot_config(self)
         self.global_frame = self._declare('global_frame', 'map')
         self.odom_frame = self._declare('odom_frame', 'odom')

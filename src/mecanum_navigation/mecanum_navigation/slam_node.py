@@ -45,8 +45,8 @@ WARNING_PERIOD_S = 5.0
 class SlamNode(Node):
     """Maps with OnlineSlam and publishes map, map -> odom and the robot's pose."""
 
-    def __init__(self):
-        super().__init__('slam_toolbox')
+    def __init__(self, **node_options):
+        super().__init__('slam_toolbox', **node_options)
         self.odom_frame = self._declare('odom_frame', 'odom')
         self.map_frame = self._declare('map_frame', 'map')
         self.base_frame = self._declare('base_frame', 'base_link')

@@ -49,8 +49,8 @@ def _seconds(stamp) -> float:
 class VelocitySmootherNode(Node):
     """Ramps cmd_vel into cmd_vel_smoothed within acceleration limits."""
 
-    def __init__(self):
-        super().__init__('velocity_smoother')
+    def __init__(self, **node_options):
+        super().__init__('velocity_smoother', **node_options)
         config = load_robot_config(default_config_path())
         defaults = SmootherParams.from_robot_config(config)
         dynamic = ParameterDescriptor(dynamic_typing=True)

@@ -28,8 +28,8 @@ from std_msgs.msg import String
 class RobotController(Node):
     """Turns text commands into timed velocity commands."""
 
-    def __init__(self):
-        super().__init__('robot_controller')
+    def __init__(self, **node_options):
+        super().__init__('robot_controller', **node_options)
         defaults = CommandLimits()
         self.limits = CommandLimits(
             linear_speed_mps=self.declare_parameter(
@@ -113,6 +113,11 @@ class RobotController(Node):
         """Publish a status line on control_status."""
         self.status_pub.publish(String(data=status))
 
+    def close(self) -> None:
+        """Stop the robot: a final zero twist (while the context is still valid)."""
+        if self.context.ok():
+            self.cmd_vel_pub.publish(Twist())
+
 
 def _raise_keyboard_interrupt(_signum, _frame):
     raise KeyboardInterrupt
@@ -149,8 +154,7 @@ def main(args=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if rclpy.ok():
-            node.cmd_vel_pub.publish(Twist())
+        node.close()
         node.destroy_node()
         rclpy.try_shutdown()
 

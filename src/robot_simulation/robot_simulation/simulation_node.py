@@ -25,8 +25,8 @@ from tf2_msgs.msg import TFMessage
 class RobotSimulation(Node):
     """Integrates cmd_vel into a pose and reports it."""
 
-    def __init__(self):
-        super().__init__('robot_simulation')
+    def __init__(self, **node_options):
+        super().__init__('robot_simulation', **node_options)
         update_rate_hz = float(self.declare_parameter('update_rate_hz', 50.0).value)
         status_rate_hz = float(self.declare_parameter('status_rate_hz', 10.0).value)
         cmd_timeout_s = float(self.declare_parameter('cmd_timeout_s', 0.5).value)
