@@ -14,7 +14,7 @@ RSS (MiB). The machine's core count bounds what the sum of CPU can be: a sum nea
 100 % x cores means the stack is CPU bound.
 
 Run:  ./mecanum exec python bench/full_stack.py [--scenario FILE] [--rtf 1 2 5]
-      [--modes standalone composed] [--json FILE]
+      [--modes standalone composed] [--json FILE] [--out DIR]
 """
 
 import argparse
@@ -103,6 +103,9 @@ def main() -> int:
     parser.add_argument('--modes', nargs='+', choices=['standalone', 'composed'],
                         default=['standalone', 'composed'])
     parser.add_argument('--json', type=Path)
+    parser.add_argument('--out', type=Path,
+                        help="keep each run's report folder under OUT/MODE_rtfX "
+                             '(default: a temporary folder, removed)')
     options = parser.parse_args()
     scenario = load_scenario(options.scenario)
     results = []
@@ -112,9 +115,9 @@ def main() -> int:
     for mode, rtf in runs:
         sampler = Sampler()
         with tempfile.TemporaryDirectory() as directory:
+            out = options.out / f'{mode}_rtf{rtf:g}' if options.out else Path(directory)
             result = run_scenario(scenario, RunOptions(
-                Path(directory), real_time_factor=rtf, on_system=sampler,
-                compose=mode == 'composed'))
+                out, real_time_factor=rtf, on_system=sampler, compose=mode == 'composed'))
         wall = max(sampler.wall[1] - sampler.wall[0], 1e-9)
         sim = result.sim_time_s or 0.0
         rows = sampler.rows()
