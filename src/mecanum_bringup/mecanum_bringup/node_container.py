@@ -27,11 +27,11 @@ import importlib
 from importlib import metadata
 import inspect
 import json
-import signal
 import sys
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional
 
-from mecanum_control.node_main import make_executor, WAKE_PERIOD_S
+from mecanum_control.node_main import (
+    close_node, raise_keyboard_interrupt_on_signals, spin_waking)
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -92,21 +92,6 @@ def parse_spec(text: str) -> List[Dict]:
     return nodes
 
 
-def _raise_keyboard_interrupt(_signum, _frame):
-    raise KeyboardInterrupt
-
-
-def _close(nodes: Sequence[Node]) -> None:
-    for node in reversed(nodes):
-        close = getattr(node, 'close', None)
-        if close is not None:
-            try:
-                close()
-            except Exception as error:  # noqa: B902 - report, then still clean up
-                node.get_logger().error(f'close failed: {error}')
-        node.destroy_node()
-
-
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the container until Ctrl-C or SIGTERM; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -121,8 +106,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         logger.fatal(str(error))
         return 2
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
-    signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
+    raise_keyboard_interrupt_on_signals()
     nodes: List[Node] = []
     try:
         for spec, cls in zip(specs, classes):
@@ -134,15 +118,12 @@ def main(argv: Optional[List[str]] = None) -> int:
                 return 2
         logger.info(f'{len(nodes)} nodes in one process: '
                     + ', '.join(node.get_name() for node in nodes))
-        executor = make_executor()
-        for node in nodes:
-            executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=WAKE_PERIOD_S)
+        spin_waking(*nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        _close(nodes)
+        for node in reversed(nodes):
+            close_node(node)
         rclpy.try_shutdown()
     return 0
 

@@ -35,6 +35,23 @@ def _raise_keyboard_interrupt(_signum, _frame):
     raise KeyboardInterrupt
 
 
+def raise_keyboard_interrupt_on_signals() -> None:
+    """Turn SIGTERM and SIGINT (also when inherited as ignored) into KeyboardInterrupt."""
+    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
+
+
+def close_node(node: Node) -> None:
+    """Run the node's ``close()`` if it has one (errors logged, not raised), then destroy it."""
+    close = getattr(node, 'close', None)
+    if close is not None:
+        try:
+            close()
+        except Exception as error:  # noqa: B902 - report, then still clean up
+            node.get_logger().error(f'close failed: {error}')
+    node.destroy_node()
+
+
 def make_executor(context=None):
     """Return the executor for a node's process (see the module docstring)."""
     if os.environ.get('MECANUM_EXECUTOR', '').strip().lower() != 'single':
@@ -47,10 +64,11 @@ def make_executor(context=None):
     return SingleThreadedExecutor(context=context)
 
 
-def spin_waking(node: Node) -> None:
-    """Spin node until its context shuts down, returning to Python every WAKE_PERIOD_S."""
+def spin_waking(node: Node, *more_nodes: Node) -> None:
+    """Spin the nodes until their context shuts down, returning to Python every WAKE_PERIOD_S."""
     executor = make_executor(node.context)
-    executor.add_node(node)
+    for each in (node, *more_nodes):
+        executor.add_node(each)
     while node.context.ok():
         executor.spin_once(timeout_sec=WAKE_PERIOD_S)
 
@@ -68,9 +86,8 @@ def run_node(node_factory: Callable[[], Node], name: str,
     except RuntimeError as error:  # rcl failed, e.g. a parameter file that is not YAML
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
         return 2
-    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
-    # Also when SIGINT was inherited as ignored (e.g. `cmd &` in a script).
-    signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
+    # SIGINT also when inherited as ignored (e.g. `cmd &` in a script).
+    raise_keyboard_interrupt_on_signals()
     try:
         node = node_factory()
     except (ValueError, ParameterException) as error:
@@ -85,12 +102,6 @@ def run_node(node_factory: Callable[[], Node], name: str,
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        close = getattr(node, 'close', None)
-        if close is not None:
-            try:
-                close()
-            except Exception as error:  # noqa: B902 - report, then still clean up
-                node.get_logger().error(f'close failed: {error}')
-        node.destroy_node()
+        close_node(node)
         rclpy.try_shutdown()
     return 0
