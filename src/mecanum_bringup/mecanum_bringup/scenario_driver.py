@@ -72,8 +72,6 @@ class ScenarioDriver:
         self.cmd_vel_pub = node.create_publisher(Twist, 'cmd_vel', 10)
         self.command_pub = node.create_publisher(String, 'control_command', 10)
         self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
-        # On sim time, but without timers: the EventsExecutor's limitation with the
-        # simulated clock (see node_main) does not apply to it.
         self.executor = make_executor(self.context)
         self.executor.add_node(node)
         self._closing = threading.Event()

