@@ -60,6 +60,37 @@ def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_n
     assert processes_with_marker(system.marker) == []
 
 
+def test_a_command_sent_before_the_clock_starts_waits_for_it(start_system, test_node):
+    """
+    On sim time a node's clock reads 0 until its first /clock (DDS discovery can take
+    seconds on a loaded machine). A timed command accepted then must neither move the
+    robot nor be cut short: it starts at the clock's first tick and lasts its duration.
+    """
+    cmd_vel = test_node.record(Twist, 'cmd_vel')
+    status = test_node.record(String, 'control_status')
+    command_pub = test_node.node.create_publisher(String, 'control_command', 10)
+    system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
+    system.wait_for_line(r'\[robot_controller\].*ready')
+    deadline = time.monotonic() + 20
+    while command_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    command_pub.publish(String(data='forward 0.4 m at 0.2 m/s'))
+    status.wait_for(lambda m: m.data == 'accepted: forward 0.4 m at 0.2 m/s')
+    system.wait_for_line(r'\[robot_controller\].*Holding .* until the clock starts')
+    time.sleep(0.5)
+    assert not [m for _, m in cmd_vel.messages if m.linear.x != 0.0]
+
+    # The clock starts at 10 s, as from a simulator that has been running a while.
+    test_node.clock_ns = 10 * 10 ** 9
+    test_node.start_clock()
+    status.wait_for(lambda m: m.data == 'done: forward', timeout=30.0)
+    # The motion lasted its 2 s of simulated time after the clock started (without the
+    # wait it was over at the first tick: its end had been set to 0 + 2 s).
+    assert test_node.clock_ns * 1e-9 - 10.0 >= 1.95
+    # At 20 Hz: 40 twists.
+    assert len([m for _, m in cmd_vel.messages if m.linear.x > 0.0]) >= 30
+
+
 def test_respawned_node_rejoins_the_graph(start_system, test_node, processes_with_marker):
     node = test_node.node
     test_node.start_clock()

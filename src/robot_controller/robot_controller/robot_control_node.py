@@ -10,6 +10,12 @@ while a motion lasts, then one zero twist; and ``control_status``
 ``done: stop``), ``interrupted: <motion>`` (replaced or stopped before its end)
 and ``rejected: <reason>``. A new command replaces the running one; a rejected
 command never moves the robot (the running motion, if any, is stopped).
+
+Motions are timed on the node's clock. On simulated time (``use_sim_time``) that clock
+reads 0 until the first /clock message arrives, which on a loaded machine can be seconds
+after the node is up (DDS discovery). A command accepted before then waits, without
+moving the robot, and starts at the clock's first tick, so that it still lasts its full
+duration.
 """
 
 import os
@@ -49,7 +55,8 @@ class RobotController(Node):
             raise ValueError(f'publish_rate_hz must be positive, got {publish_rate_hz}')
 
         self.motion = None
-        self.motion_end = None
+        self.motion_text = ''
+        self.motion_end = None   # None while a motion waits for the clock to start
 
         self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel', 10)
         self.status_pub = self.create_publisher(String, 'control_status', 10)
@@ -73,16 +80,35 @@ class RobotController(Node):
             self.finish('done: stop')
             return
         self.motion = motion
+        self.report(f'accepted: {text}')
+        if self.clock_started():
+            self.start_motion(text)
+        else:
+            self.motion_text = text
+            self.get_logger().warning(
+                f'Holding {text!r} until the clock starts (use_sim_time is set and no '
+                '/clock message has arrived yet)')
+
+    def clock_started(self) -> bool:
+        """Whether the node's clock runs: simulated time reads 0 until the first /clock."""
+        return self.get_clock().now().nanoseconds > 0
+
+    def start_motion(self, text: str) -> None:
+        """Start timing the accepted motion now, and send its first twist."""
+        motion = self.motion
         self.motion_end = self.get_clock().now() + Duration(seconds=motion.duration_s)
         self.get_logger().info(
             f'Executing {text!r}: vx={motion.vx:.3f} m/s vy={motion.vy:.3f} m/s '
             f'wz={motion.wz:.3f} rad/s for {motion.duration_s:.2f} s')
-        self.report(f'accepted: {text}')
         self.publish_twist(motion)
 
     def on_timer(self) -> None:
         """Keep publishing the running motion, and end it when its time is up."""
         if self.motion is None:
+            return
+        if self.motion_end is None:   # accepted before the clock started
+            if self.clock_started():
+                self.start_motion(self.motion_text)
             return
         if self.get_clock().now() >= self.motion_end:
             self.finish(f'done: {self.motion.name}')
