@@ -78,6 +78,7 @@ class EkfNode(Node):
         self.filter = PlanarEkf(config.process_noise, config.initial_covariance,
                                 config.initial_state, config.smooth_lagged_data,
                                 config.history_length_s)
+        _warm_up()
         self.frames = TransformBuffer()
         self.front_ends = {s.name: SensorFrontEnd(s, config.gravitational_acceleration_m_s2)
                            for s in config.sensors}
@@ -346,6 +347,21 @@ class EkfNode(Node):
                 transform.header = Header(frame_id=config.world_frame, stamp=self._stamp(
                     self.filter.time_s + config.transform_time_offset_s))
             self.tf_pub.publish(TFMessage(transforms=[transform]))
+
+
+def _warm_up() -> None:
+    """
+    Run a filter once through both kinds of update, so numba loads its compiled loops now.
+
+    Otherwise the first measurements would stall the node (the first run ever compiles
+    them: seconds; numba caches the result for later runs).
+    """
+    warm = PlanarEkf(np.eye(8) * 0.01, np.eye(8), smooth_lagged_data=True,
+                     history_length_s=1.0)
+    warm.process(Measurement(0.0, (VX, VY, VYAW), (0.0, 0.0, 0.0), np.eye(3)))
+    warm.process(Measurement(0.1, (VYAW, AX, AY), (0.0, 0.0, 0.0), np.eye(3),
+                             specific_force=True))
+    warm.process(Measurement(0.05, (X, Y, YAW), (0.0, 0.0, 0.0), np.eye(3), 5.0))
 
 
 def main(args=None) -> int:

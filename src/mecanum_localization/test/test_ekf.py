@@ -3,8 +3,8 @@
 import math
 
 from mecanum_localization.ekf import (
-    AX, AY, Measurement, PlanarEkf, predict_state, STATE_SIZE, transition_jacobian, VX, VY,
-    VYAW, wrap_angle, X, Y, YAW)
+    _correct_kernel, _predict_kernel, _wrap, AX, AY, Measurement, PlanarEkf, predict_state,
+    STATE_SIZE, transition_jacobian, VX, VY, VYAW, wrap_angle, X, Y, YAW)
 from mecanum_localization.ekf_config import parse_ekf_config
 import numpy as np
 import pytest
@@ -50,6 +50,16 @@ def test_wrap_angle_is_in_minus_pi_exclusive_to_pi_inclusive():
     assert wrap_angle(3 * math.pi) == math.pi
     assert wrap_angle(1.5 * math.pi) == pytest.approx(-0.5 * math.pi)
     assert wrap_angle(-0.25) == -0.25
+
+
+def test_compiled_wrap_agrees_with_wrap_angle():
+    angles = [math.pi, -math.pi, 3 * math.pi, -3 * math.pi, 0.0, -0.25, 1.5 * math.pi,
+              1e3, -1e3, math.nextafter(math.pi, 4.0), math.nextafter(-math.pi, -4.0)]
+    angles += list(np.linspace(-20.0, 20.0, 401))
+    for angle in angles:
+        wrapped = _wrap(angle)
+        assert -math.pi < wrapped <= math.pi
+        assert wrapped == pytest.approx(wrap_angle(angle), abs=1e-12)
 
 
 def test_prediction_at_constant_velocity_heading_x():
@@ -139,6 +149,67 @@ def test_yaw_innovation_is_wrapped():
     ekf.process(Measurement(0.0, [YAW], [-3.0], [[1.0]]))
     assert ekf.state[YAW] == pytest.approx(math.pi, abs=1e-12)
     assert -math.pi < ekf.state[YAW] <= math.pi
+
+
+def reference_update(state_vector, covariance, indices, values, noise, specific_force):
+    """Return the textbook EKF update in numpy (the compiled kernel writes it out)."""
+    size = len(indices)
+    observation = np.zeros((size, STATE_SIZE))
+    observation[range(size), indices] = 1.0
+    predicted = state_vector[indices].copy()
+    vx, vy, vyaw = state_vector[VX], state_vector[VY], state_vector[VYAW]
+    for row, index in enumerate(indices):
+        if specific_force and index == AX:
+            predicted[row] -= vyaw * vy
+            observation[row, VYAW], observation[row, VY] = -vy, -vyaw
+        elif specific_force and index == AY:
+            predicted[row] += vyaw * vx
+            observation[row, VYAW], observation[row, VX] = vx, vyaw
+    innovation = values - predicted
+    for row, index in enumerate(indices):
+        if index == YAW:
+            innovation[row] = wrap_angle(innovation[row])
+    innovation_covariance = observation @ covariance @ observation.T + noise
+    distance = float(innovation @ np.linalg.solve(innovation_covariance, innovation))
+    gain = covariance @ observation.T @ np.linalg.inv(innovation_covariance)
+    updated = state_vector + gain @ innovation
+    updated[YAW] = wrap_angle(updated[YAW])
+    complement = np.eye(STATE_SIZE) - gain @ observation
+    updated_covariance = complement @ covariance @ complement.T + gain @ noise @ gain.T
+    return distance, updated, updated_covariance
+
+
+def test_compiled_update_and_prediction_agree_with_numpy_algebra():
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        state_vector = rng.normal(size=STATE_SIZE)
+        state_vector[YAW] = rng.uniform(-math.pi, math.pi)
+        root = rng.normal(size=(STATE_SIZE, STATE_SIZE))
+        covariance = root @ root.T + 0.1 * np.eye(STATE_SIZE)
+        size = int(rng.integers(1, STATE_SIZE + 1))
+        indices = np.array(sorted(rng.choice(STATE_SIZE, size, replace=False)), dtype=np.int64)
+        values = rng.normal(size=size)
+        noise_root = rng.normal(size=(size, size))
+        noise = noise_root @ noise_root.T + 0.01 * np.eye(size)
+        specific_force = bool(trial % 2)
+        status, distance, updated, updated_covariance = _correct_kernel(
+            state_vector, covariance, indices, values, noise, specific_force, math.inf)
+        expected = reference_update(state_vector, covariance, indices, values, noise,
+                                    specific_force)
+        assert status == 0
+        assert distance == pytest.approx(expected[0], rel=1e-9)
+        assert updated == pytest.approx(expected[1], rel=1e-9, abs=1e-9)
+        assert updated_covariance == pytest.approx(expected[2], rel=1e-9, abs=1e-9)
+        assert np.array_equal(updated_covariance, updated_covariance.T)
+
+        dt = float(rng.uniform(0.0, 0.2))
+        process_noise = np.diag(rng.uniform(0.0, 1.0, STATE_SIZE))
+        predicted, predicted_covariance = _predict_kernel(state_vector, covariance,
+                                                          process_noise, dt)
+        jacobian = transition_jacobian(state_vector, dt)
+        assert predicted == pytest.approx(predict_state(state_vector, dt))
+        assert predicted_covariance == pytest.approx(
+            jacobian @ covariance @ jacobian.T + process_noise * dt, rel=1e-9, abs=1e-12)
 
 
 def test_mahalanobis_gate_rejects_outliers_and_passes_normal_measurements():
