@@ -26,9 +26,7 @@ are not recorded), ``include_hidden_topics`` (false), ``discovery_period_s`` (1.
 import functools
 import importlib
 import os
-import signal
 import sys
-import threading
 import time
 from typing import Dict, List, Sequence
 
@@ -37,7 +35,7 @@ from mecanum_bringup.bag_writer import (
     OfferedQos)
 from mecanum_bringup.message_definitions import split_type_name
 from mecanum_control.log_throttle import KeyedThrottle
-from mecanum_control.node_main import run_node, WAKE_PERIOD_S
+from mecanum_control.node_main import run_node, spin_waking
 from mecanum_control.parameters import declare_number, positive
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -100,23 +98,12 @@ def spin_until_signal(node: Node) -> None:
     """
     Spin node until SIGINT/SIGTERM or the context's shutdown (run_node's spin).
 
-    The signals only set a flag here, so one never interrupts a message half written
-    (or rclpy half way through taking it); a second signal, while the node closes,
-    interrupts as usual.
+    The signals only set a flag while spinning (node_main.spin_waking), so one never
+    interrupts a message half written (or rclpy half way through taking it).
     """
-    stop = threading.Event()
-    previous = {number: signal.signal(number, lambda *_: stop.set())
-                for number in (signal.SIGINT, signal.SIGTERM)}
     # Not the EventsExecutor of the other nodes: with it the subscriptions this node
     # creates as topics appear never delivered a message (a 5-minute demo recorded 0).
-    executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    try:
-        while node.context.ok() and not stop.is_set():
-            executor.spin_once(timeout_sec=WAKE_PERIOD_S)
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+    spin_waking(node, executor=SingleThreadedExecutor(context=node.context))
 
 
 def raw_subscription(node: Node, msg_class, topic: str, callback, qos: QoSProfile):

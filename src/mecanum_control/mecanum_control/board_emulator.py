@@ -126,12 +126,17 @@ class BoardLink:
         if not self.port.plugged:
             return
         self.receive()
+        due = []
         for msg_type, period_s in self.periods_s.items():
             when = self.due_s.setdefault(msg_type, now_s)
             if now_s >= when:
-                self.send(self.message(msg_type))
+                due.append(self.message(msg_type))
                 # Keep the rate; skip beats missed while descheduled.
                 self.due_s[msg_type] = max(when + period_s, now_s)
+        if due:
+            # Reports due together go out in one write, as a UART sends them back to back
+            # (and the host's reader wakes once for them, not once per frame).
+            self.send(*due)
 
     def next_due_s(self) -> float:
         """Earliest time a report is due (for the caller's sleep)."""
@@ -171,23 +176,28 @@ class BoardLink:
         return proto.BoardStatus(board_time_us, faults, 12000, min(bad, 0xFFFF),
                                  model.last_command_seq)
 
-    def send(self, message: proto.Message) -> None:
-        """Send one report, numbered per type; the line may drop or corrupt it."""
-        msg_type = proto.message_type_of(message)
-        seq = self.tx_seq[msg_type]
-        self.tx_seq[msg_type] = (seq + 1) % (1 << 16)
-        data = bytearray(proto.encode_frame(message, seq))
-        if self.drop_rate and self._random.random() < self.drop_rate:
+    def send(self, *messages: proto.Message) -> None:
+        """Send reports back to back, each numbered per type; the line may drop or corrupt each."""
+        data = bytearray()
+        for message in messages:
+            msg_type = proto.message_type_of(message)
+            seq = self.tx_seq[msg_type]
+            self.tx_seq[msg_type] = (seq + 1) % (1 << 16)
+            frame = bytearray(proto.encode_frame(message, seq))
+            if self.drop_rate and self._random.random() < self.drop_rate:
+                continue
+            if self.corrupt_rate and self._random.random() < self.corrupt_rate:
+                index = self._random.randrange(len(frame) - 1)
+                frame[index] ^= 1 << self._random.randrange(8)
+            data += frame
+        if not data:
             return
-        if self.corrupt_rate and self._random.random() < self.corrupt_rate:
-            index = self._random.randrange(len(data) - 1)
-            data[index] ^= 1 << self._random.randrange(8)
         if not self._flush_pending():
-            return  # the line is still busy with the rest of an earlier frame: drop this one
+            return  # the line is still busy with the rest of an earlier frame: drop these
         try:
             written = os.write(self.port.master, bytes(data))
         except (BlockingIOError, OSError):
-            return  # nobody reading and the pty buffer is full: the frame is lost, as on a UART
+            return  # nobody reading and the pty buffer is full: the frames are lost, as on a UART
         if written < len(data):
             self._pending = bytes(data[written:])  # never leave half a frame on the line
 

@@ -16,9 +16,11 @@ core with it and 2.6 % with the EventsExecutor. ``MECANUM_EXECUTOR=single`` in t
 environment selects the SingleThreadedExecutor instead.
 """
 
+from contextlib import contextmanager
 import os
 import signal
-from typing import Callable, List, Optional
+import threading
+from typing import Callable, Iterator, List, Optional
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -64,13 +66,42 @@ def make_executor(context=None):
     return SingleThreadedExecutor(context=context)
 
 
-def spin_waking(node: Node, *more_nodes: Node) -> None:
-    """Spin the nodes until their context shuts down, returning to Python every WAKE_PERIOD_S."""
-    executor = make_executor(node.context)
+@contextmanager
+def signals_deferred() -> Iterator[threading.Event]:
+    """
+    Within: SIGINT and SIGTERM only set the yielded event; KeyboardInterrupt after, if one came.
+
+    For spin loops, which check the event. A KeyboardInterrupt raised inside a callback
+    that the C++ EventsExecutor runs comes out of spin_once as a RuntimeError ("Unable
+    to convert call argument") with a traceback, and a callback cut half way may leave a
+    message half handled. The previous handlers are back on leaving, so a second signal,
+    while the nodes close, interrupts as usual.
+    """
+    stop = threading.Event()
+    previous = {number: signal.signal(number, lambda *_: stop.set())
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    if stop.is_set():
+        raise KeyboardInterrupt
+
+
+def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
+    """
+    Spin the nodes until Ctrl-C/SIGTERM (then raise KeyboardInterrupt) or their context ends.
+
+    Returns to Python every WAKE_PERIOD_S to look at the signals (see
+    :func:`signals_deferred`). ``executor``: default :func:`make_executor`'s.
+    """
+    executor = executor or make_executor(node.context)
     for each in (node, *more_nodes):
         executor.add_node(each)
-    while node.context.ok():
-        executor.spin_once(timeout_sec=WAKE_PERIOD_S)
+    with signals_deferred() as stop:
+        while node.context.ok() and not stop.is_set():
+            executor.spin_once(timeout_sec=WAKE_PERIOD_S)
 
 
 def run_node(node_factory: Callable[[], Node], name: str,

@@ -18,15 +18,12 @@ moving the robot, and starts at the clock's first tick, so that it still lasts i
 duration.
 """
 
-import os
-import signal
+import sys
 
 from geometry_msgs.msg import Twist
-import rclpy
+from mecanum_control.node_main import run_node
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from robot_controller.command_parser import CommandError, CommandLimits, Motion, parse_command
 from std_msgs.msg import String
 
@@ -145,45 +142,10 @@ class RobotController(Node):
             self.cmd_vel_pub.publish(Twist())
 
 
-def _raise_keyboard_interrupt(_signum, _frame):
-    raise KeyboardInterrupt
-
-
-def _executor():
-    """
-    Return rclpy's EventsExecutor (C++; a third of the CPU an idle node on sim time costs).
-
-    The SingleThreadedExecutor when MECANUM_EXECUTOR=single or the rclpy has none.
-    """
-    if os.environ.get('MECANUM_EXECUTOR', '').strip().lower() != 'single':
-        try:
-            from rclpy.experimental import EventsExecutor
-        except ImportError:
-            pass
-        else:
-            return EventsExecutor()
-    return SingleThreadedExecutor()
-
-
-def main(args=None):
+def main(args=None) -> int:
     """Run the robot_controller node until Ctrl-C or SIGTERM, then stop the robot."""
-    # rclpy's own handler would shut the context down before we could send the
-    # final zero twist; handle SIGINT/SIGTERM here instead.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
-    node = RobotController()
-    try:
-        executor = _executor()
-        executor.add_node(node)
-        while rclpy.ok():   # spin_once: the EventsExecutor's spin() never returns here
-            executor.spin_once(timeout_sec=0.2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node(RobotController, 'robot_controller', args)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -43,7 +43,7 @@ from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from mecanum_control.board_emulator import BoardLink, PtyPort
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.messages import planar_odometry
-from mecanum_control.node_main import make_executor, run_node
+from mecanum_control.node_main import make_executor, run_node, signals_deferred
 from mecanum_control.parameters import declare_number, declare_robot_config, positive
 from nav_msgs.msg import Odometry
 import rclpy
@@ -216,24 +216,26 @@ class SimulatorNode(Node):
         executor = make_executor(self.context)
         executor.add_node(self)
         start = next_spin = time.monotonic()
-        while rclpy.ok():
-            self.advance()
-            now = time.monotonic()
-            if now >= next_spin:  # parameter services; spinning every step costs 3x
-                executor.spin_once(timeout_sec=0.0)
-                next_spin = now + SPIN_PERIOD_S
-            if self.real_time_factor > 0.0:
-                wait = start + self.sim.time_s / self.real_time_factor - now
-                if wait > 0.0:
-                    time.sleep(wait)
-                elif wait < -0.25:
-                    # Stalled (load, debugger): do not race to catch up, which would
-                    # flood the control stack with /clock; carry on from here.
-                    start = now - self.sim.time_s / self.real_time_factor
-                    self.get_logger().warning(
-                        f'Simulation fell {-wait:.2f} s behind real_time_factor '
-                        f'{self.real_time_factor}; continuing from now',
-                        throttle_duration_sec=10.0)
+        # Ctrl-C or SIGTERM: the step in progress ends, then KeyboardInterrupt.
+        with signals_deferred() as stop:
+            while rclpy.ok() and not stop.is_set():
+                self.advance()
+                now = time.monotonic()
+                if now >= next_spin:  # parameter services; spinning every step costs 3x
+                    executor.spin_once(timeout_sec=0.0)
+                    next_spin = now + SPIN_PERIOD_S
+                if self.real_time_factor > 0.0:
+                    wait = start + self.sim.time_s / self.real_time_factor - now
+                    if wait > 0.0:
+                        time.sleep(wait)
+                    elif wait < -0.25:
+                        # Stalled (load, debugger): do not race to catch up, which would
+                        # flood the control stack with /clock; carry on from here.
+                        start = now - self.sim.time_s / self.real_time_factor
+                        self.get_logger().warning(
+                            f'Simulation fell {-wait:.2f} s behind real_time_factor '
+                            f'{self.real_time_factor}; continuing from now',
+                            throttle_duration_sec=10.0)
 
     def close(self) -> None:
         """Unplug the simulated board (removes its link)."""

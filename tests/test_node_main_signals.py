@@ -1,0 +1,65 @@
+"""
+Integration: Ctrl-C and SIGTERM stop a node cleanly even in the middle of a callback.
+
+A real node process (mecanum_control.node_main.run_node, rclpy's EventsExecutor) whose
+timer callback takes 0.3 s, so the signal lands inside a callback run by the C++
+executor: the node must finish that callback, run its close() and exit 0, without a
+traceback (a KeyboardInterrupt raised inside such a callback came out of spin_once as
+"RuntimeError: Unable to convert call argument").
+"""
+
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+NODE = textwrap.dedent('''
+    import sys
+    import time
+
+    from mecanum_control.node_main import run_node
+    from rclpy.node import Node
+
+
+    class SlowCallbacks(Node):
+        def __init__(self, **node_options):
+            super().__init__('slow_callbacks', **node_options)
+            self.calls = 0
+            self.create_timer(0.01, self.on_timer)
+
+        def on_timer(self):
+            self.calls += 1
+            if self.calls == 2:
+                print('busy', flush=True)
+            time.sleep(0.3)
+
+        def close(self):
+            print(f'closed after {self.calls} callbacks', flush=True)
+
+
+    sys.exit(run_node(SlowCallbacks, 'slow_callbacks'))
+''')
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_a_callback_closes_the_node_cleanly(ros_env, tmp_path, signal_number):
+    script = tmp_path / 'slow_node.py'
+    script.write_text(NODE)
+    process = subprocess.Popen([sys.executable, str(script)], env=ros_env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'busy'
+        process.send_signal(signal_number)   # during the 0.3 s callback
+        stdout, stderr = process.communicate(timeout=15)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    print(stdout, stderr)
+    assert process.returncode == 0
+    assert 'closed after' in stdout
+    assert 'Traceback' not in stderr
+    assert 'Exception in' not in stderr
