@@ -24,6 +24,7 @@ estimate is published with the stamp of the latest one; with no measurement for
 from itertools import count
 import math
 import sys
+import time
 from typing import List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
@@ -78,7 +79,12 @@ class EkfNode(Node):
         self.filter = PlanarEkf(config.process_noise, config.initial_covariance,
                                 config.initial_state, config.smooth_lagged_data,
                                 config.history_length_s)
+        started = time.monotonic()
         _warm_up()
+        if time.monotonic() - started > 2.0:
+            self.get_logger().info(
+                f'compiled the filter\'s numba kernels in {time.monotonic() - started:.1f} s '
+                '(first run; numba caches them for the next)')
         self.frames = TransformBuffer()
         self.front_ends = {s.name: SensorFrontEnd(s, config.gravitational_acceleration_m_s2)
                            for s in config.sensors}
