@@ -83,7 +83,7 @@ class EkfNode(Node):
         _warm_up()
         if time.monotonic() - started > 2.0:
             self.get_logger().info(
-                f'compiled the filter\'s numba kernels in {time.monotonic() - started:.1f} s '
+                f'compiled the numba kernels of the filter in {time.monotonic() - started:.1f} s '
                 '(first run; numba caches them for the next)')
         self.frames = TransformBuffer()
         self.front_ends = {s.name: SensorFrontEnd(s, config.gravitational_acceleration_m_s2)
