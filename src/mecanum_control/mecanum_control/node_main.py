@@ -2,8 +2,10 @@
 The standard ``main()`` of the mecanum_control nodes.
 
 rclpy's own signal handler would shut the context down before a node could send its
-final zero command, so SIGINT (Ctrl-C) and SIGTERM are turned into KeyboardInterrupt
-and the node's ``close()`` (if it has one) runs while the context is still valid.
+final zero command, so SIGINT (Ctrl-C) and SIGTERM end the spin with KeyboardInterrupt
+and the node's ``close()`` (if it has one) runs while the context is still valid. While
+the node spins they only set a flag that the spin loop checks (:func:`signals_deferred`);
+before it does (construction) they raise KeyboardInterrupt at once.
 A parameter error (bad value or type, unreadable parameter file) is logged as fatal
 and gives exit code 2, without a traceback. The default spin returns to Python every
 ``WAKE_PERIOD_S``: a wait without a timeout never returns while no message arrives,

@@ -133,6 +133,18 @@ def _predict_kernel(state: np.ndarray, covariance: np.ndarray, process_noise: np
 
 
 @njit(cache=True)
+def _floored(covariance: np.ndarray) -> np.ndarray:
+    """Return the covariance symmetrised, with variances below MIN_VARIANCE raised to it."""
+    size = covariance.shape[0]
+    floored = np.empty((size, size))
+    for i in range(size):
+        for j in range(size):
+            floored[i, j] = 0.5 * (covariance[i, j] + covariance[j, i])
+        floored[i, i] = max(floored[i, i], MIN_VARIANCE)
+    return floored
+
+
+@njit(cache=True)
 def _cholesky_solve(lower: np.ndarray, vector: np.ndarray) -> np.ndarray:
     """Solve (L L') x = b given the Cholesky factor L."""
     size = vector.shape[0]
@@ -163,11 +175,7 @@ def _correct_kernel(state: np.ndarray, covariance: np.ndarray, indices: np.ndarr
     symmetrised and floored at MIN_VARIANCE here.
     """
     size = indices.shape[0]
-    floored = np.empty((size, size))
-    for i in range(size):
-        for j in range(size):
-            floored[i, j] = 0.5 * (noise[i, j] + noise[j, i])
-        floored[i, i] = max(floored[i, i], MIN_VARIANCE)
+    floored = _floored(noise)
     # h(x) and its Jacobian H (one row per measured variable).
     observation = np.zeros((size, STATE_SIZE))
     innovation = np.empty(size)
@@ -496,14 +504,6 @@ class PlanarEkf:
             return UpdateResult('gated', f'Mahalanobis distance {math.sqrt(squared_distance):.2f}'
                                 f' >= threshold {measurement.rejection_threshold:g}')
         return UpdateResult('fused')
-
-
-def _floored(covariance: np.ndarray) -> np.ndarray:
-    """Symmetrise a covariance and raise variances below MIN_VARIANCE to it."""
-    covariance = 0.5 * (covariance + covariance.T)
-    diagonal = np.diag_indices_from(covariance)
-    covariance[diagonal] = np.maximum(covariance[diagonal], MIN_VARIANCE)
-    return covariance
 
 
 @njit(cache=True)

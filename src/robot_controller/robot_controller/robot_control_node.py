@@ -77,11 +77,11 @@ class RobotController(Node):
             self.finish('done: stop')
             return
         self.motion = motion
+        self.motion_text = text
         self.report(f'accepted: {text}')
         if self.clock_started():
-            self.start_motion(text)
+            self.start_motion()
         else:
-            self.motion_text = text
             self.get_logger().warning(
                 f'Holding {text!r} until the clock starts (use_sim_time is set and no '
                 '/clock message has arrived yet)')
@@ -90,12 +90,12 @@ class RobotController(Node):
         """Whether the node's clock runs: simulated time reads 0 until the first /clock."""
         return self.get_clock().now().nanoseconds > 0
 
-    def start_motion(self, text: str) -> None:
+    def start_motion(self) -> None:
         """Start timing the accepted motion now, and send its first twist."""
         motion = self.motion
         self.motion_end = self.get_clock().now() + Duration(seconds=motion.duration_s)
         self.get_logger().info(
-            f'Executing {text!r}: vx={motion.vx:.3f} m/s vy={motion.vy:.3f} m/s '
+            f'Executing {self.motion_text!r}: vx={motion.vx:.3f} m/s vy={motion.vy:.3f} m/s '
             f'wz={motion.wz:.3f} rad/s for {motion.duration_s:.2f} s')
         self.publish_twist(motion)
 
@@ -105,7 +105,7 @@ class RobotController(Node):
             return
         if self.motion_end is None:   # accepted before the clock started
             if self.clock_started():
-                self.start_motion(self.motion_text)
+                self.start_motion()
             return
         if self.get_clock().now() >= self.motion_end:
             self.finish(f'done: {self.motion.name}')
