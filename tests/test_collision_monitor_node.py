@@ -20,7 +20,7 @@ import time
 
 from geometry_msgs.msg import PolygonStamped, TransformStamped, Twist
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_navigation.collision_monitor import (
+from mecanum_navigation.safety.collision_monitor import (
     CollisionMonitor, scan_to_points, SourceData, Zone)
 import numpy as np
 import pytest

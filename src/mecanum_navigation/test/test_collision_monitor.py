@@ -1,8 +1,8 @@
-"""Hand-worked tests of mecanum_navigation.collision_monitor (Nav2 collision_monitor rules)."""
+"""Hand-worked tests of mecanum_navigation.safety.collision_monitor (Nav2 collision_monitor rules)."""
 
 import math
 
-from mecanum_navigation.collision_monitor import (
+from mecanum_navigation.safety.collision_monitor import (
     collision_time, CollisionMonitor, scan_to_points, SourceData, Zone)
 import numpy as np
 import pytest

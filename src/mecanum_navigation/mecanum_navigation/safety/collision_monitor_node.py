@@ -5,7 +5,7 @@ Every command on ``cmd_vel_in_topic`` ('cmd_vel_smoothed'; geometry_msgs/Twist, 
 twist in ``base_frame_id``, REP-103) is checked at once against the zones and the latest
 laser data, and the allowed twist is published on ``cmd_vel_out_topic`` ('cmd_vel'), one
 output per input, as Nav2 does; with no input nothing is published. The rules are those
-of :mod:`mecanum_navigation.collision_monitor`: zones in order, the most restrictive
+of :mod:`mecanum_navigation.safety.collision_monitor`: zones in order, the most restrictive
 wins, 'stop' zeroes any command (whatever its direction, as in Nav2).
 
 Observation sources (``observation_sources``, default ['scan']): ``SRC.type`` 'scan'
@@ -47,7 +47,7 @@ from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
-from mecanum_navigation.collision_monitor import (
+from mecanum_navigation.safety.collision_monitor import (
     CollisionMonitor, MonitorResult, scan_to_points, SourceData, ZERO, Zone)
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
