@@ -5,7 +5,7 @@ The test node publishes what the robot would: the laser mount on /tf_static (5 c
 of base_link as motor_params.yaml's lidar_mount_x_m, but turned by 180 degrees, so a node
 ignoring the transform would see the wall behind the robot), LaserScans of a straight
 wall across the robot's path (360 beams of 1 degree, ranges from the geometry), and
-commands on cmd_vel_smoothed about every 50 ms. Expected outputs are worked out from
+commands on cmd_vel_mux (the twist_mux's output) about every 50 ms. Expected outputs are worked out from
 config/collision_monitor.yaml: unchanged commands when nothing is near, zero in the stop
 zone, and for the approach zone what the pure core computes for the same scan (its
 float32 ranges) and zones read from the file here.
@@ -101,7 +101,7 @@ class Publishers:
     def __init__(self, test_node):
         """Create the publishers; start() begins publishing."""
         self.test_node = test_node
-        self.cmd_pub = test_node.node.create_publisher(Twist, 'cmd_vel_smoothed', 10)
+        self.cmd_pub = test_node.node.create_publisher(Twist, PARAMS['cmd_vel_in_topic'], 10)
         self.scan_pub = test_node.node.create_publisher(LaserScan, 'scan', 10)
         self.command = None
         self.scans = False
@@ -157,7 +157,7 @@ def settle(out, state, twist, state_text, count=4):
 
 def test_zones_sources_and_transforms(start_system, test_node):
     test_node.start_clock()
-    out = test_node.record(Twist, 'cmd_vel')
+    out = test_node.record(Twist, PARAMS['cmd_vel_out_topic'])
     state = test_node.record(String, 'collision_monitor_state')
     polygons = {}
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -33,10 +33,15 @@ TWIST_TOLERANCE = 0.05
 
 
 class Driver:
-    """Publishes one cmd_vel at 20 Hz from a thread until changed or stopped."""
+    """
+    Publishes one twist at 20 Hz from a thread until changed or stopped.
+
+    On cmd_vel_safe, motor_controller's input in control.launch.yaml (the output of the
+    command chain, which this control-stack-only system does not start).
+    """
 
     def __init__(self, test_node):
-        self.publisher = test_node.node.create_publisher(Twist, 'cmd_vel', 10)
+        self.publisher = test_node.node.create_publisher(Twist, 'cmd_vel_safe', 10)
         self.twist = None
         self._context = test_node.context
         threading.Thread(target=self._run, daemon=True).start()

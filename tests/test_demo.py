@@ -102,7 +102,7 @@ def test_the_recording_reads_back_with_the_mcap_library(demo):
         topics = {channel.topic: statistics.channel_message_counts.get(channel_id, 0)
                   for channel_id, channel in reader.get_summary().channels.items()}
     assert statistics.message_count == metadata['message_count']
-    for topic in ('/scan', '/tf', '/tf_static', '/odometry/filtered', '/cmd_vel', '/map',
+    for topic in ('/scan', '/tf', '/tf_static', '/odometry/filtered', '/cmd_vel_safe', '/map',
                   '/amcl_pose', '/clock', '/ground_truth/odom', '/joint_states',
                   '/imu/data_raw', '/plan', '/robot_description', '/local_costmap/costmap'):
         assert topics.get(topic, 0) > 0, topic

@@ -4,11 +4,17 @@ Integration: the shipped scenario suite runs headless and every verdict is the e
 run_scenarios runs each scenario file of mecanum_bringup/scenarios (but the demo's
 12-goal tour, which tests/test_demo.py runs, and kitchen_run: see NOT_IN_CI) with the
 whole simulated robot, each in its
-own ROS domain and processes. Two scenarios must fail (a robot pushed into a wall, a
-goal with too short a timeout) and two expect refused goals (outside the authorised
-zone, in a wall): the harness must report all of them as expected, in its table, its
-exit code, its JUnit XML and each scenario's summary.json, and leave no process behind.
-A scenario given the wrong expectation must be reported UNEXPECTED with exit code 1.
+own ROS domain and processes. One scenario must fail (a goal with too short a timeout)
+and two expect refused goals (outside the authorised zone, in a wall): the harness must
+report all of them as expected, in its table, its exit code, its JUnit XML and each
+scenario's summary.json, and leave no process behind. A scenario given the wrong
+expectation must be reported UNEXPECTED with exit code 1.
+
+The safety scenarios of the command chain (issue 17) drive the robot by every
+interface into walls and across zone borders: raw twists and teleop (through the mux),
+text commands (stopped short, or refused when they would leave the zone), navigation
+with a concave zone and an excluded doorway, a person stepping in front, localisation
+hanging near the border. Across the whole suite: no collision and no zone exit.
 """
 
 import json
@@ -60,11 +66,7 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path):
     assert (suite.get('tests'), suite.get('failures'), suite.get('errors')) == (
         str(len(SUITE)), '0', '0')
     assert {case.get('name') for case in suite.iter('testcase')} == {p.stem for p in SUITE}
-    # The must-fail scenarios failed for the right reason.
-    pushed = summary(tmp_path, 'pushed_into_wall')
-    assert pushed['verdict'] == 'fail' and pushed['collisions'] >= 1
-    failed = [c['name'] for c in pushed['criteria'] if not c['passed']]
-    assert failed == ['no_collision']
+    # The must-fail scenario failed for the right reason.
     timeout = summary(tmp_path, 'must_fail_timeout')
     assert timeout['verdict'] == 'fail' and timeout['steps'][0]['outcome'] == 'timeout'
     # Refused goals carry the navigator's error codes; the next goals are still reached.
@@ -78,15 +80,56 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path):
     assert all(step['outcome'] == 'refused' for step in wall['steps'])
     commands = summary(tmp_path, 'text_commands')
     assert [step['outcome'] for step in commands['steps']] == ['done'] * 7
-    # Every passing scenario that drives reached its goals without touching anything.
+    check_the_command_chain_scenarios(tmp_path)
+    # Every passing scenario reached its goals without touching anything or leaving
+    # the zone.
     for path in SUITE:
         result_summary = summary(tmp_path, path.stem)
         assert (tmp_path / path.stem / 'run.png').read_bytes()[:4] == b'\x89PNG'
         if result_summary['expected'] == 'pass':
             assert result_summary['collisions'] == 0, path.stem
+            zone = [c for c in result_summary['criteria'] if c['name'] == 'stay_in_zone']
+            assert zone and zone[0]['passed'], (path.stem, zone)
             assert result_summary['goals_reached'] == sum(
                 1 for step in result_summary['steps'] if step['outcome'] == 'reached')
     assert processes_with_marker() == []
+
+
+def truth_track(out: Path, name: str):
+    """Return a scenario's truth.csv as rows of t, x, y, yaw."""
+    lines = (out / name / 'truth.csv').read_text().splitlines()[1:]
+    return [tuple(float(v) for v in line.split(',')) for line in lines]
+
+
+def events(result_summary: dict, node: str) -> list:
+    """Return the states of a node's safety events in a summary."""
+    return [e['state'] for e in result_summary['safety_events'] if e['node'] == node]
+
+
+def check_the_command_chain_scenarios(out: Path):
+    """What each safety scenario of issue 17 must show beyond its verdict."""
+    pushed = summary(out, 'pushed_into_wall')
+    assert pushed['verdict'] == 'pass' and pushed['collisions'] == 0
+    walls = summary(out, 'text_commands_into_walls')
+    assert [step['outcome'] for step in walls['steps']] == [
+        'stopped', 'stopped', 'done', 'rejected']
+    assert 'blocked by collision_monitor' in walls['steps'][0]['error_message']
+    assert 'authorised zone' in walls['steps'][3]['error_message']
+    border = summary(out, 'text_commands_across_border')
+    assert [step['outcome'] for step in border['steps']] == [
+        'rejected', 'done', 'done', 'rejected']
+    # Teleop pushed at the border x = 4.5 for 14 s in all: the footprint (0.2 m) stayed
+    # inside, and the robot did get near it (it was held, not stopped far off).
+    xs = [x for _, x, _, _ in truth_track(out, 'teleop_at_border')]
+    assert 4.0 < max(xs) <= 4.5 - 0.2 + 0.01, max(xs)
+    # Concave zone: the kitchen and the bathroom reached round the excluded doorway.
+    excluded = summary(out, 'excluded_room_between')
+    assert [step['outcome'] for step in excluded['steps']] == [
+        'reached', 'reached', 'refused', 'reached']
+    # amcl hung near the border: the zone guard stopped on the stale pose.
+    lost = summary(out, 'localization_lost_near_border')
+    assert any('no pose' in state for state in events(lost, 'zone_guard')), \
+        lost['safety_events']
 
 
 def test_a_wrong_expectation_is_reported_unexpected(tmp_path):

@@ -16,14 +16,22 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       real_time_factor: 1.0            # optional, > 0
       seed: 0                          # optional int >= 0
       authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
-                                       # optional: default the world's test_zone; [] = none
+                                       # optional: default the world's test_zone; [] = none;
+                                       # or {include: [...], exclude: [[...], ...]}
+                                       # (mecanum_navigation.safety.zone's format)
       moving_obstacles: []             # optional, extra ones in the world file's format
       steps:                           # required, at least one, run in order
       - goal: {x: 5.1, y: 6.2, yaw: 0.0, timeout_s: 90}    # NavigateToPose; expect reached
       - goal: {x: 12.0, y: 3.0, expect: refused, error: GOAL_OUTSIDE_ZONE}
       - command: 'forward 1.5 m'       # a robot_controller text command
         timeout_s: 20                  # optional: default the motion's duration + 10 s
-      - cmd_vel: {vx: 0.3, vy: 0.0, wz: 0.0, duration_s: 3.0}   # raw body twist
+        expect: done                   # optional: done (default) | stopped (the command
+                                       # chain stopped it short) | rejected | any
+      - cmd_vel: {vx: 0.3, vy: 0.0, wz: 0.0, duration_s: 3.0, source: scenario}
+                                       # a body twist on a command source's topic
+                                       # (twist_mux.yaml: scenario, teleop_keyboard,
+                                       # joystick, external, ...), through the command chain
+      - freeze: {node: amcl, duration_s: 5.0}   # the node's process hangs (SIGSTOP)
       - wait: {duration_s: 2.0}
       criteria:                        # all optional; defaults shown
         max_duration_s: null           # simulated seconds from the first step to the last
@@ -60,10 +68,11 @@ from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
 from mecanum_control.robot_config import default_config_path, load_robot_config, RobotConfig
 from mecanum_navigation.map_io import find_map_file, MapError
+from mecanum_navigation.safety.zone import parse_zone, Zone, ZoneError
 import numpy as np
 from robot_controller.command_parser import CommandError, CommandLimits, Motion, parse_command
 from robot_simulation.world import (
-    find_world, load_world, points_in_polygon, polygon_problem, World, WorldError)
+    find_world, load_world, World, WorldError)
 import yaml
 
 PathLike = Union[str, Path]
@@ -96,7 +105,8 @@ COMMAND_TIMEOUT_MARGIN_S = 10.0
 
 GOAL_EXPECTATIONS = ('reached', 'refused', 'any')
 VERDICTS = ('pass', 'fail')
-STEP_KINDS = ('goal', 'command', 'cmd_vel', 'wait')
+STEP_KINDS = ('goal', 'command', 'cmd_vel', 'wait', 'freeze')
+COMMAND_EXPECTATIONS = ('done', 'stopped', 'rejected', 'any')
 SCENARIO_KEYS = ('name', 'description', 'world', 'map', 'spawn', 'initial_pose',
                  'floor_friction_coefficient', 'real_time_factor', 'seed', 'authorised_zone',
                  'moving_obstacles', 'steps', 'criteria', 'expect')
@@ -139,6 +149,7 @@ class CommandStep:
     text: str
     timeout_s: float
     motion: Motion  # what robot_controller's parser makes of text (default limits)
+    expect: str = 'done'   # done | stopped | rejected | any
 
     kind = 'command'
 
@@ -149,18 +160,50 @@ class CommandStep:
 
 @dataclass(frozen=True)
 class CmdVelStep:
-    """Hold the body twist vx, vy (m/s), wz (rad/s) for duration_s, bypassing navigation."""
+    """
+    Hold the body twist vx, vy (m/s), wz (rad/s) for duration_s on a command source's topic.
+
+    source names an input of the command chain's twist_mux (mecanum_navigation
+    config/twist_mux.yaml: 'scenario' by default, 'teleop_keyboard', 'joystick',
+    'external', ...); topic is that input's topic. Like every source, it goes through
+    the collision monitor and the zone guard.
+    """
 
     vx: float
     vy: float
     wz: float
     duration_s: float
+    source: str = 'scenario'
+    topic: str = 'cmd_vel_scenario'
 
     kind = 'cmd_vel'
 
     def describe(self) -> str:
-        """Return e.g. 'cmd_vel (0.30, 0.00, 0.00) for 3.0 s'."""
-        return f'cmd_vel ({self.vx:.2f}, {self.vy:.2f}, {self.wz:.2f}) for {self.duration_s:.1f} s'
+        """Return e.g. 'cmd_vel (0.30, 0.00, 0.00) for 3.0 s from teleop_keyboard'."""
+        source = '' if self.source == 'scenario' else f' from {self.source}'
+        return (f'cmd_vel ({self.vx:.2f}, {self.vy:.2f}, {self.wz:.2f}) for '
+                f'{self.duration_s:.1f} s{source}')
+
+
+@dataclass(frozen=True)
+class FreezeStep:
+    """
+    Hang the process that runs node for duration_s simulated seconds (SIGSTOP, SIGCONT).
+
+    A hung node: e.g. amcl, so that localisation goes stale. In a composed system the
+    node's whole container hangs (e.g. amcl with map_server and the navigator). The step
+    ends at once: the next steps run while the node hangs; it resumes duration_s later
+    (or when the run ends).
+    """
+
+    node: str
+    duration_s: float
+
+    kind = 'freeze'
+
+    def describe(self) -> str:
+        """Return e.g. 'freeze amcl for 5.0 s'."""
+        return f'freeze {self.node} for {self.duration_s:.1f} s'
 
 
 @dataclass(frozen=True)
@@ -176,7 +219,7 @@ class WaitStep:
         return f'wait {self.duration_s:.1f} s'
 
 
-Step = Union[GoalStep, CommandStep, CmdVelStep, WaitStep]
+Step = Union[GoalStep, CommandStep, CmdVelStep, WaitStep, FreezeStep]
 
 
 @dataclass(frozen=True)
@@ -196,7 +239,8 @@ class Scenario:
 
     world_file is the base world file; map_name (the file's ``map``) is a map name
     (mecanum_navigation/maps) or an absolute path; spawn and initial_pose are (x m, y m,
-    yaw rad); authorised_zone is a polygon of (x, y) or None (no zone); moving_obstacles
+    yaw rad); authorised_zone is the Zone (mecanum_navigation.safety.zone) or None (no
+    zone); moving_obstacles
     are the extra entries in the world file's format; world is the built scenario world
     (see scenario_world_document).
     """
@@ -212,7 +256,7 @@ class Scenario:
     floor_friction_coefficient: float = 0.0
     real_time_factor: float = 1.0
     seed: int = 0
-    authorised_zone: Optional[Tuple[Point, ...]] = None
+    authorised_zone: Optional[Zone] = None
     moving_obstacles: Tuple[Dict[str, Any], ...] = ()
     criteria: Criteria = Criteria()
     expect: str = 'pass'
@@ -231,8 +275,9 @@ class StepResult:
 
     outcome: goal 'reached' | 'refused' (rejected, or ended with an error code before
     moving) | 'failed' (ended with an error code) | 'timeout' (timeout_s elapsed, goal
-    canceled); command 'done' | 'rejected' | 'interrupted' | 'timeout'; cmd_vel and
-    wait 'done'; any step 'aborted' when the run stopped during it. error_code is the
+    canceled); command 'done' | 'stopped' (the command chain held it: robot_controller
+    ended it short) | 'rejected' | 'interrupted' | 'timeout'; cmd_vel, wait and freeze
+    'done'; any step 'aborted' when the run stopped during it. error_code is the
     NavigateToPose result code (0 otherwise).
     """
 
@@ -267,6 +312,10 @@ class RunRecord:
     truth: np.ndarray = field(default_factory=_empty_track)
     estimate: np.ndarray = field(default_factory=_empty_track)
     collision_times: List[float] = field(default_factory=list)
+    #: (t, node, state, x, y): each time the command chain stopped or held the robot
+    #: (collision_monitor or zone_guard STOP) or robot_controller refused or stopped a
+    #: command, with the robot's true position then.
+    safety_events: List[Tuple[float, str, str, float, float]] = field(default_factory=list)
     step_results: List[StepResult] = field(default_factory=list)
     duration_s: float = 0.0
     aborted: Optional[str] = None
@@ -353,7 +402,7 @@ def build_world(document: Dict[str, Any], file_name: str = 'world.yaml') -> Worl
         return load_world(path)
 
 
-def _world_document(world_file: Path, spawn: Pose, zone: Optional[Sequence[Point]],
+def _world_document(world_file: Path, spawn: Pose, zone: Optional[Zone],
                     moving: Sequence[Dict[str, Any]]) -> Dict[str, Any]:
     world = copy.deepcopy(_world_file_document(world_file)['world'])
     world.setdefault('name', world_file.stem)
@@ -363,7 +412,7 @@ def _world_document(world_file: Path, spawn: Pose, zone: Optional[Sequence[Point
     if zone is None:
         world.pop('test_zone', None)
     else:
-        world['test_zone'] = [[float(px), float(py)] for px, py in zone]
+        world['test_zone'] = zone.to_document()
     world['moving_obstacles'] = list(world.get('moving_obstacles') or []) + [
         copy.deepcopy(dict(item)) for item in moving]
     map_value = world.get('map')
@@ -372,6 +421,15 @@ def _world_document(world_file: Path, spawn: Pose, zone: Optional[Sequence[Point
         if not map_path.is_absolute():
             world['map'] = str((world_file.parent / map_path).resolve())
     return {'world': world}
+
+
+@functools.lru_cache(maxsize=1)
+def command_sources() -> Dict[str, str]:
+    """Return {source name: topic} of the command chain's twist_mux (config/twist_mux.yaml)."""
+    from ament_index_python.packages import get_package_share_directory
+    path = Path(get_package_share_directory('mecanum_navigation')) / 'config' / 'twist_mux.yaml'
+    params = yaml.safe_load(path.read_text(encoding='utf-8'))['twist_mux']['ros__parameters']
+    return {name: str(entry['topic']) for name, entry in params['topics'].items()}
 
 
 @functools.lru_cache(maxsize=1)
@@ -473,23 +531,6 @@ class _Parser:
         return (self.number(raw['x'], f'{key}.x'), self.number(raw['y'], f'{key}.y'),
                 self.number(raw.get('yaw', 0.0), f'{key}.yaw'))
 
-    def polygon(self, value: Any, key: str) -> Optional[Tuple[Point, ...]]:
-        """Return a simple polygon of >= 3 finite points; [] means no polygon."""
-        if not isinstance(value, (list, tuple)):
-            self.fail(key, f'must be a list of [x, y] points, not {value!r}')
-        if len(value) == 0:
-            return None
-        points = []
-        for index, point in enumerate(value):
-            where = f'{key}[{index}]'
-            if not isinstance(point, (list, tuple)) or len(point) != 2:
-                self.fail(where, f'must be an [x, y] point, not {point!r}')
-            points.append((self.number(point[0], where), self.number(point[1], where)))
-        problem = polygon_problem(points)
-        if problem:
-            self.fail(key, f'polygon {problem}')
-        return tuple(points)
-
     def parse(self, doc: Any) -> Scenario:
         """Check the whole document and return the Scenario."""
         if not isinstance(doc, dict) or 'scenario' not in doc:
@@ -525,7 +566,10 @@ class _Parser:
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             self.fail('seed', f'must be an integer >= 0, not {seed!r}')
         if 'authorised_zone' in raw and raw['authorised_zone'] is not None:
-            zone = self.polygon(raw['authorised_zone'], 'authorised_zone')
+            try:
+                zone = parse_zone(raw['authorised_zone'], 'authorised_zone')
+            except ZoneError as error:
+                self.fail('', str(error))
         else:
             zone = base.test_zone
         moving = self.moving_obstacles(raw.get('moving_obstacles'))
@@ -589,7 +633,7 @@ class _Parser:
         return tuple(value)
 
     def scenario_world(self, world_file: Path, base: World, spawn: Pose,
-                       zone: Optional[Tuple[Point, ...]],
+                       zone: Optional[Zone],
                        moving: Tuple[Dict[str, Any], ...]) -> World:
         """Build the scenario's world; report its errors with the scenario's keys."""
         document = _world_document(world_file, spawn, zone, moving)
@@ -618,7 +662,7 @@ class _Parser:
             self.fail(key, f'needs exactly one of {", ".join(STEP_KINDS)}, got '
                       f'{", ".join(kinds) or "none"}')
         kind = kinds[0]
-        self.mapping(raw, key, (kind,), ('timeout_s',) if kind == 'command' else ())
+        self.mapping(raw, key, (kind,), ('timeout_s', 'expect') if kind == 'command' else ())
         where = f'{key}.{kind}'
         if kind == 'goal':
             return self.goal(raw['goal'], where)
@@ -626,6 +670,10 @@ class _Parser:
             return self.command(raw, key)
         if kind == 'cmd_vel':
             return self.cmd_vel(raw['cmd_vel'], where)
+        if kind == 'freeze':
+            item = self.mapping(raw['freeze'], where, ('node', 'duration_s'))
+            return FreezeStep(self.text(item['node'], f'{where}.node'),
+                              self.positive(item['duration_s'], f'{where}.duration_s'))
         item = self.mapping(raw['wait'], where, ('duration_s',))
         return WaitStep(self.positive(item['duration_s'], f'{where}.duration_s'))
 
@@ -658,11 +706,16 @@ class _Parser:
         except CommandError as error:
             self.fail(f'{key}.command', f'{text!r}: {error}')
         timeout = raw.get('timeout_s', motion.duration_s + COMMAND_TIMEOUT_MARGIN_S)
-        return CommandStep(text.strip(), self.positive(timeout, f'{key}.timeout_s'), motion)
+        expect = self.choice(raw.get('expect', 'done'), f'{key}.expect',
+                             COMMAND_EXPECTATIONS)
+        return CommandStep(text.strip(), self.positive(timeout, f'{key}.timeout_s'), motion,
+                           expect)
 
     def cmd_vel(self, value: Any, key: str) -> CmdVelStep:
         """Return a cmd_vel step within the robot's velocity limits (motor_params.yaml)."""
-        raw = self.mapping(value, key, ('duration_s',), ('vx', 'vy', 'wz'))
+        raw = self.mapping(value, key, ('duration_s',), ('vx', 'vy', 'wz', 'source'))
+        sources = command_sources()
+        source = self.choice(raw.get('source', 'scenario'), f'{key}.source', sorted(sources))
         robot = _robot_config()
         limits = {'vx': ('max_velocity_x_m_s', robot.max_velocity_x_m_s),
                   'vy': ('max_velocity_y_m_s', robot.max_velocity_y_m_s),
@@ -674,7 +727,8 @@ class _Parser:
                 self.fail(f'{key}.{name}', f"{twist[name]:g} exceeds the robot's "
                           f'{limit_name} {limit:g} (motor_params.yaml)')
         return CmdVelStep(twist['vx'], twist['vy'], twist['wz'],
-                          self.positive(raw['duration_s'], f'{key}.duration_s'))
+                          self.positive(raw['duration_s'], f'{key}.duration_s'),
+                          source, sources[source])
 
     def criteria(self, value: Any) -> Criteria:
         """Return the Criteria; every key is optional."""
@@ -813,11 +867,13 @@ def _judge_step(number: int, step: Step, result: Optional[StepResult],
     took = f' in {result.duration_s:.1f} s' if math.isfinite(result.duration_s) else ''
     if isinstance(step, GoalStep):
         return _judge_goal(name, head, step, result, took)
-    passed = outcome == 'done'
+    expected = step.expect if isinstance(step, CommandStep) else 'done'
+    passed = expected == 'any' or outcome == expected
     detail = f'{head}: {outcome}{took}'
     if result.error_message:
         detail += f': {result.error_message}'
-    return CriterionResult(name, passed, detail if passed else detail + ' (expected done)')
+    return CriterionResult(name, passed,
+                           detail if passed else detail + f' (expected {expected})')
 
 
 def _judge_goal(name: str, head: str, step: GoalStep, result: StepResult,
@@ -858,13 +914,13 @@ def _judge_completion(scenario: Scenario, record: RunRecord) -> CriterionResult:
                            f'{float(record.duration_s):.1f} s')
 
 
-def _judge_zone(zone: Optional[Sequence[Point]], truth: Any) -> CriterionResult:
+def _judge_zone(zone: Optional[Zone], truth: Any) -> CriterionResult:
     if zone is None:
         return CriterionResult('stay_in_zone', True, 'stay_in_zone: no zone declared')
     track = track_array(truth, 'truth')
     if len(track) == 0:
         return CriterionResult('stay_in_zone', False, 'stay_in_zone: no ground truth recorded')
-    inside = points_in_polygon(track[:, 1], track[:, 2], list(zone))
+    inside = zone.contains(track[:, 1], track[:, 2])
     if np.all(inside):
         return CriterionResult('stay_in_zone', True,
                                f'stay_in_zone: inside at all {len(track)} true poses')

@@ -4,18 +4,24 @@ The scenario runner's ROS side: one rclpy node in the scenario's own domain.
 It listens to the simulator's ground truth (``ground_truth/odom``, map frame), amcl's
 estimate (``amcl_pose``), the collision count (``simulation/collisions``), the global plans
 (``plan``) and robot_controller's ``control_status``; it sends NavigateToPose goals on
-``navigate_to_pose``, text commands on ``control_command`` and raw body twists on
-``cmd_vel`` (base_link, m/s and rad/s: below navigation and the collision monitor). Its
-clock is the simulator's (/clock). It spins in a background thread; the runner calls
+``navigate_to_pose``, text commands on ``control_command`` and body twists (base_link,
+m/s and rad/s) on a command source's topic of the command chain (``cmd_vel_scenario``
+by default, ``cmd_vel_teleop``, ...: mecanum_navigation config/twist_mux.yaml), so they
+go through the mux, the collision monitor and the zone guard like any other. It also
+records every stop of the chain (``collision_monitor_state``, ``zone_guard_state``) and
+every refusal or early stop of robot_controller, where the robot then was. Its clock is
+the simulator's (/clock). It spins in a background thread; the runner calls
 its methods from the main thread.
 """
 
+import functools
 import math
 import threading
 import time
-from typing import Callable, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Tuple
 
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from mecanum_bringup.scenario import command_sources
 from mecanum_control.node_main import make_executor
 from mecanum_interfaces.action import NavigateToPose
 from nav_msgs.msg import Odometry, Path
@@ -26,6 +32,8 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String, UInt32
 
+#: The command chain's stages whose STOP states are recorded as safety events.
+SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
 #: Wall seconds to wait for a goal's answer before sending it again (lost in discovery).
 GOAL_RESEND_S = 5.0
 #: Wall seconds to wait for an answer at all.
@@ -69,7 +77,13 @@ class ScenarioDriver:
         node.create_subscription(UInt32, 'simulation/collisions', self._on_collisions, latched)
         node.create_subscription(Path, 'plan', self._on_plan, 10)
         node.create_subscription(String, 'control_status', self._on_status, 20)
-        self.cmd_vel_pub = node.create_publisher(Twist, 'cmd_vel', 10)
+        self._safety_events: List[Tuple[float, str, str, float, float]] = []
+        self._chain_state: Dict[str, str] = {}
+        for topic in SAFETY_STATE_TOPICS:
+            node.create_subscription(String, topic, functools.partial(
+                self._on_chain_state, topic.replace('_state', '')), 20)
+        self._twist_pubs = {topic: node.create_publisher(Twist, topic, 10)
+                            for topic in command_sources().values()}
         self.command_pub = node.create_publisher(String, 'control_command', 10)
         self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
         self.executor = make_executor(self.context)
@@ -121,6 +135,26 @@ class ScenarioDriver:
     def _on_status(self, msg: String) -> None:
         with self._lock:
             self._statuses.append(msg.data)
+            if msg.data.startswith(('rejected', 'stopped')):
+                self._add_safety_event('robot_controller', msg.data)
+
+    def _on_chain_state(self, node_name: str, msg: String) -> None:
+        """Record each change of a chain stage's state into a STOP (not every message)."""
+        with self._lock:
+            previous = self._chain_state.get(node_name, '')
+            self._chain_state[node_name] = msg.data
+            if msg.data.startswith('STOP') and not previous.startswith('STOP'):
+                self._add_safety_event(node_name, msg.data)
+
+    def _add_safety_event(self, node_name: str, text: str) -> None:
+        """Append an event at the latest true pose (call with the lock held)."""
+        t, x, y, _ = self._truth[-1] if self._truth else (math.nan,) * 4
+        self._safety_events.append((t, node_name, text, x, y))
+
+    def safety_events(self) -> List[Tuple[float, str, str, float, float]]:
+        """Return (t, node, state, x, y) of every stop or refusal of the command chain."""
+        with self._lock:
+            return list(self._safety_events)
 
     def sim_now(self) -> Optional[float]:
         """Return the simulated time (s), None before the first /clock."""
@@ -235,11 +269,13 @@ class ScenarioDriver:
             return fresh
         return new_statuses
 
-    def publish_twist(self, vx: float, vy: float, wz: float) -> None:
-        """Publish one body twist on cmd_vel (m/s, m/s, rad/s)."""
+    def publish_twist(self, vx: float, vy: float, wz: float,
+                      topic: str = 'cmd_vel_scenario') -> None:
+        """Publish one body twist (m/s, m/s, rad/s) on a command source's topic."""
+        publisher = self._twist_pubs[topic]
         msg = Twist()
         msg.linear.x, msg.linear.y, msg.angular.z = float(vx), float(vy), float(wz)
-        self.cmd_vel_pub.publish(msg)
+        publisher.publish(msg)
 
     def close(self) -> None:
         """Stop spinning and shut the node's context down."""

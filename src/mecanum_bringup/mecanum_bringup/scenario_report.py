@@ -10,12 +10,13 @@ an Agg canvas (no pyplot, no display, no global backend change).
 from dataclasses import dataclass
 import math
 import re
-from typing import Any, Dict, Optional, Sequence
+from typing import Any, Dict, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from mecanum_bringup.scenario import (
     distance_travelled_m, GoalStep, localization_errors, RunRecord, Scenario, track_array,
     Verdict)
+from mecanum_navigation.safety.zone import Zone
 import numpy as np
 
 #: Longest text in the table's last column.
@@ -190,6 +191,9 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
         'localization_error_rms_m': (_finite_or_none(math.sqrt(np.mean(errors ** 2)))
                                      if len(errors) else None),
         'aborted': record.aborted,
+        'safety_events': [{'t_s': _finite_or_none(t), 'node': node, 'state': text,
+                           'x_m': _finite_or_none(x), 'y_m': _finite_or_none(y)}
+                          for t, node, text, x, y in record.safety_events],
         'steps': [{'kind': r.kind, 'outcome': r.outcome, 'error_code': int(r.error_code),
                    'error_message': r.error_message, 'start_s': _finite_or_none(r.start_s),
                    'end_s': _finite_or_none(r.end_s)} for r in record.step_results],
@@ -206,7 +210,8 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
 def plot_run(path_png: Any, occupancy_map: Any, truth: Any, estimate: Any,
              planned_paths: Sequence[Any] = (), goals: Sequence[Sequence[float]] = (),
              collision_points: Sequence[Sequence[float]] = (),
-             zone: Optional[Sequence[Sequence[float]]] = None, title: str = '') -> None:
+             zone: Optional[Zone] = None, title: str = '',
+             safety_events: Sequence[Tuple[float, float, str]] = ()) -> None:
     """
     Write a PNG of one run in world coordinates (metres, equal aspect).
 
@@ -214,7 +219,9 @@ def plot_run(path_png: Any, occupancy_map: Any, truth: Any, estimate: Any,
     origin = the lower-left cell corner and yaw) drawn grey (free white, occupied black,
     unknown mid grey), or None. truth (solid) and estimate (dashed): (N, 4) t, x, y, yaw.
     planned_paths: (K, 2) x, y polylines (thin). goals: (x, y[, yaw]) numbered markers.
-    collision_points: (x, y) red crosses. zone: the authorised polygon outline.
+    collision_points: (x, y) red crosses. zone: the authorised zone (its inclusion and
+    exclusion outlines). safety_events: (x, y, text) where the command chain stopped or
+    refused a motion (orange triangles).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -235,11 +242,15 @@ def plot_run(path_png: Any, occupancy_map: Any, truth: Any, estimate: Any,
         if yaw:
             image.set_transform(Affine2D().rotate_around(origin_x, origin_y, yaw)
                                 + axes.transData)
-    if zone is not None and len(zone) >= 3:
-        outline = np.asarray(zone, dtype=np.float64).reshape(-1, 2)
-        outline = np.vstack([outline, outline[:1]])
-        axes.plot(outline[:, 0], outline[:, 1], color='tab:green', linewidth=1.2,
-                  linestyle=':', label='authorised zone')
+    if zone is not None:
+        for index, polygon in enumerate(zone.polygons()):
+            outline = np.vstack([polygon, polygon[:1]])
+            if index:
+                axes.fill(outline[:, 0], outline[:, 1], color='tab:red', alpha=0.12,
+                          label='excluded' if index == 1 else None)
+            axes.plot(outline[:, 0], outline[:, 1], color='tab:green' if index == 0
+                      else 'tab:red', linewidth=1.2, linestyle=':',
+                      label='authorised zone' if index == 0 else None)
     for index, path in enumerate(planned_paths):
         points = np.asarray(path, dtype=np.float64).reshape(-1, 2)
         axes.plot(points[:, 0], points[:, 1], color='tab:blue', linewidth=0.8, alpha=0.8,
@@ -263,6 +274,13 @@ def plot_run(path_png: Any, occupancy_map: Any, truth: Any, estimate: Any,
                           arrowprops={'arrowstyle': '->', 'color': 'tab:purple'})
         axes.annotate(str(number), (gx, gy), textcoords='offset points', xytext=(6, 6),
                       color='tab:purple', fontsize=9, fontweight='bold')
+    events = [(float(x), float(y)) for x, y, _ in safety_events
+              if math.isfinite(float(x)) and math.isfinite(float(y))]
+    if events:
+        points = np.asarray(events)
+        axes.plot(points[:, 0], points[:, 1], marker='^', color='tab:orange', markersize=7,
+                  markeredgecolor='black', linestyle='none', zorder=6,
+                  label=f'command chain stops ({len(events)})')
     collisions = np.asarray(collision_points, dtype=np.float64).reshape(-1, 2)
     if len(collisions):
         axes.plot(collisions[:, 0], collisions[:, 1], marker='x', color='red', markersize=9,

@@ -41,21 +41,24 @@ import json
 import math
 import os
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
 import threading
 import time
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import uuid
 
 from mecanum_bringup.isolation import (
     isolated_environment, lease_domain_id, processes_with_variable)
 from mecanum_bringup.scenario import (
-    CmdVelStep, CommandStep, error_label, find_scenarios, GoalStep, judge, load_scenario,
-    RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult, WaitStep)
+    CmdVelStep, CommandStep, error_label, find_scenarios, FreezeStep, GoalStep, judge,
+    load_scenario, RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult,
+    WaitStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
+from mecanum_navigation.safety.zone import zone_file_text
 import numpy as np
 import yaml
 
@@ -100,12 +103,13 @@ class RunOptions:
 
 def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> Path:
     """
-    Write the scenario's world, navigator parameters and launch file into run_dir.
+    Write the scenario's world, zone file, navigator parameters and launch file into run_dir.
 
     The launch file includes mecanum_bringup robot.launch.yaml with the scenario's world
     (spawn, zone and moving obstacles built in), map, initial pose (known: 5 cm / 3 deg
-    spread), friction, seed and real-time factor, and the navigator's parameters with
-    the authorised zone (robot.launch has robot_controller for text commands); plus the
+    spread), friction, seed and real-time factor, the navigator's parameters and the
+    authorised zone as a zone file (zone.yaml: the one declaration that the planner, the
+    zone guard and robot_controller load, and that the judge uses); plus the
     bag recorder with options.record, the Foxglove bridge with options.foxglove.
     Returns the launch file's path.
     """
@@ -116,11 +120,10 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
     from ament_index_python.packages import get_package_share_directory
     nav_share = Path(get_package_share_directory('mecanum_navigation'))
     params = yaml.safe_load((nav_share / 'config' / 'nav2_params.yaml').read_text())
-    zone = scenario.authorised_zone
-    params['navigator']['ros__parameters']['authorised_zone'] = (
-        [float(c) for point in zone for c in point] if zone else [])
     nav_params = run_dir / 'nav2_params.yaml'
     nav_params.write_text(yaml.safe_dump(params, sort_keys=False), encoding='utf-8')
+    zone_file = run_dir / 'zone.yaml'
+    zone_file.write_text(zone_file_text(scenario.authorised_zone), encoding='utf-8')
     x, y, yaw = scenario.initial_pose
     rtf = options.real_time_factor or scenario.real_time_factor
     args = {'world': str(world_file), 'map': scenario.map_name,
@@ -128,7 +131,8 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
             'initial_pose_std_xy': 0.05, 'initial_pose_std_yaw': 0.05,
             'real_time_factor': rtf, 'seed': scenario.seed,
             'floor_friction_coefficient': scenario.floor_friction_coefficient,
-            'nav_params_file': str(nav_params), 'board_port': str(run_dir / 'ttySIM'),
+            'nav_params_file': str(nav_params), 'zone_file': str(zone_file),
+            'board_port': str(run_dir / 'ttySIM'),
             'estop_latch_file': str(run_dir / 'estop_latched')}
     entries: List[Dict] = [{'include': {
         'file': '$(find-pkg-share mecanum_bringup)/launch/robot.launch.yaml',
@@ -175,14 +179,26 @@ class SystemProcess:
                 self._log.write(line + '\n')
 
     def node_pids(self) -> Dict[str, int]:
-        """Return {node label: pid} from the launch runner's 'started' lines so far."""
+        """Return {node label: pid} from the launch runner's (re)started lines so far."""
         pids = {}
         with self._lock:
-            for line in self.lines:
-                if line.startswith('[runner] started ') and '(pid ' in line:
-                    label = line[len('[runner] started '):].split(' (pid ')[0]
-                    pids[label] = int(line.split('(pid ')[1].split(')')[0])
+            for line in self.lines:   # 'started X (pid N)', 'restarted X (start 2, pid N)'
+                match = _STARTED.match(line)
+                if match:
+                    pids[match.group(1)] = int(match.group(2))
         return pids
+
+    def pid_of(self, node: str) -> Optional[int]:
+        """Return the pid of the process running node (its container when composed)."""
+        pids = self.node_pids()
+        if node in pids:
+            return pids[node]
+        from mecanum_bringup.composition import load_composition
+        from mecanum_bringup.launch_runner import default_composition_file
+        for container, members in load_composition(default_composition_file()).items():
+            if node in members and container in pids:
+                return pids[container]
+        return None
 
     def has_line(self, *parts: str) -> bool:
         """Tell whether an output line so far contains every one of parts."""
@@ -215,6 +231,9 @@ class SystemProcess:
         self._reader.join(timeout=5.0)
         with self._lock:
             self._log.close()
+
+
+_STARTED = re.compile(r'^\[runner\] (?:re)?started (\S+) \((?:start \d+, )?pid (\d+)\)')
 
 
 def processes_with_marker(marker: Optional[str] = None) -> List[int]:
@@ -268,6 +287,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
             if driver is not None:
                 record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
                 record.collision_times = list(driver.collision_times)
+                record.safety_events = driver.safety_events()
                 plans = driver.plans()
                 collision_points = driver.collision_points()
                 driver.close()
@@ -319,6 +339,23 @@ def _check(system: SystemProcess) -> None:
 
 def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRecord,
                options: RunOptions, say: Progress) -> None:
+    frozen: List[Tuple[int, float]] = []   # (pid, simulated time to resume it)
+    try:
+        _run_each_step(scenario, driver, system, options, say, record, frozen)
+    finally:
+        for pid, _ in frozen:
+            _resume(pid)
+
+
+def _resume(pid: int) -> None:
+    try:
+        os.kill(pid, signal.SIGCONT)
+    except ProcessLookupError:
+        pass
+
+
+def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: RunOptions,
+                   say: Progress, record: RunRecord, frozen: List[Tuple[int, float]]) -> None:
     total = len(scenario.steps)
     for number, step in enumerate(scenario.steps, start=1):
         start_s = driver.sim_now()
@@ -331,6 +368,9 @@ def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRec
             """Check the system, print a status line now and then; return sim now."""
             _check(system)
             now = driver.sim_now()
+            for entry in [entry for entry in frozen if now >= entry[1]]:
+                frozen.remove(entry)
+                _resume(entry[0])
             if now - last_status[0] >= options.status_period_s:
                 last_status[0] = now
                 say('    ' + driver.status_line(now - start_s))
@@ -344,6 +384,8 @@ def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRec
             _cmd_vel(step, driver, result, poll)
         elif isinstance(step, WaitStep):
             _wait(step.duration_s, driver, result, poll)
+        elif isinstance(step, FreezeStep):
+            _freeze(step, system, result, frozen)
         result.end_s = driver.sim_now()
         detail = f' ({error_label(result.error_code)}: {result.error_message})' \
             if result.error_code else ''
@@ -397,6 +439,9 @@ def _command(step: CommandStep, driver, result: StepResult, poll) -> None:
             if status.startswith('interrupted'):
                 result.outcome, result.error_message = 'interrupted', status
                 return
+            if status.startswith('stopped'):
+                result.outcome, result.error_message = 'stopped', status
+                return
         if poll() > deadline:
             driver.send_command('stop', poll)
             result.outcome = 'timeout'
@@ -412,10 +457,21 @@ def _cmd_vel(step: CmdVelStep, driver, result: StepResult, poll) -> None:
         if now >= end:
             break
         if now >= next_s:
-            driver.publish_twist(step.vx, step.vy, step.wz)
+            driver.publish_twist(step.vx, step.vy, step.wz, step.topic)
             next_s = now + CMD_VEL_PERIOD_S
         time.sleep(0.005)
-    driver.publish_twist(0.0, 0.0, 0.0)
+    driver.publish_twist(0.0, 0.0, 0.0, step.topic)
+    result.outcome = 'done'
+
+
+def _freeze(step: FreezeStep, system: 'SystemProcess', result: StepResult,
+            frozen: List[Tuple[int, float]]) -> None:
+    """Hang the process running step.node (SIGSTOP); poll resumes it duration_s later."""
+    pid = system.pid_of(step.node)
+    if pid is None:
+        raise RuntimeError(f'freeze: no running process runs node {step.node!r}')
+    os.kill(pid, signal.SIGSTOP)
+    frozen.append((pid, result.start_s + step.duration_s))
     result.outcome = 'done'
 
 
@@ -435,7 +491,8 @@ def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
     goals = [(g.x, g.y, g.yaw) for g in scenario.goals]
     plot_run(path_png, occupancy, record.truth, record.estimate, plans, goals,
              collision_points, scenario.authorised_zone,
-             title=f'{scenario.name}: {verdict}')
+             title=f'{scenario.name}: {verdict}',
+             safety_events=[(x, y, text) for _, _, text, x, y in record.safety_events])
 
 
 # --- the command line --------------------------------------------------------------------

@@ -7,14 +7,15 @@ import shutil
 import textwrap
 
 from mecanum_bringup.scenario import (
-    CmdVelStep, CommandStep, Criteria, find_scenarios, GoalStep, judge, load_scenario,
-    localization_errors, NAVIGATE_TO_POSE_ERRORS, RunRecord, scenario_world_document,
-    ScenarioError, StepResult, track_array, WaitStep)
+    build_world, CmdVelStep, CommandStep, Criteria, find_scenarios, FreezeStep, GoalStep,
+    judge, load_scenario, localization_errors, NAVIGATE_TO_POSE_ERRORS, RunRecord,
+    scenario_world_document, ScenarioError, StepResult, track_array, WaitStep)
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_navigation.map_io import find_map_file
+from mecanum_navigation.safety.zone import make_zone
 import numpy as np
 import pytest
-from robot_simulation.world import find_world, load_world, points_in_polygon
+from robot_simulation.world import find_world, load_world
 import yaml
 
 PACKAGE = Path(__file__).resolve().parents[1]
@@ -101,7 +102,8 @@ def test_a_full_file_loads_every_field(tmp_path):
     assert scenario.floor_friction_coefficient == 0.3
     assert scenario.real_time_factor == 2.0
     assert scenario.seed == 7
-    assert scenario.authorised_zone == ((0.1, 0.1), (9.9, 0.1), (9.9, 7.9), (0.1, 7.9))
+    assert scenario.authorised_zone == make_zone([(0.1, 0.1), (9.9, 0.1), (9.9, 7.9),
+                                                  (0.1, 7.9)])
     goal, refused, command, cmd_vel, wait, any_goal, any_refusal, rotate = scenario.steps
     assert goal == GoalStep(5.1, 6.2, 0.0, 90.0, 'reached', None)
     assert refused.expect == 'refused' and refused.error_code == 9100
@@ -113,7 +115,8 @@ def test_a_full_file_loads_every_field(tmp_path):
     assert math.isclose(command.motion.duration_s, 7.5) and command.motion.vx == 0.2
     # rotate left 90 deg at 0.5 rad/s: pi/2 / 0.5 = 3.14 s, + 10 s default margin.
     assert math.isclose(rotate.timeout_s, math.pi + 10.0)
-    assert cmd_vel == CmdVelStep(0.3, -0.1, 0.5, 3.0)
+    assert cmd_vel == CmdVelStep(0.3, -0.1, 0.5, 3.0, 'scenario', 'cmd_vel_scenario')
+    assert command.expect == 'done'
     assert wait == WaitStep(2.0)
     assert [s.kind for s in scenario.steps] == [
         'goal', 'goal', 'command', 'cmd_vel', 'wait', 'goal', 'goal', 'command']
@@ -133,7 +136,8 @@ def test_the_world_document_is_the_base_world_with_spawn_zone_and_obstacles(tmp_
     world = document['world']
     assert world['robot_start'] == {'x_m': 4.8, 'y_m': 1.5,
                                     'yaw_deg': pytest.approx(math.degrees(1.5))}
-    assert world['test_zone'] == [[0.1, 0.1], [9.9, 0.1], [9.9, 3.95], [0.1, 3.95]]
+    assert world['test_zone'] == {
+        'frame_id': 'map', 'include': [[0.1, 0.1], [9.9, 0.1], [9.9, 3.95], [0.1, 3.95]]}
     assert world['moving_obstacles'] == base['moving_obstacles'] + [
         {'name': 'cat', 'radius_m': 0.15, 'speed_m_s': 0.3,
          'path': [[3.0, 6.4], [5.5, 6.4]], 'loop': False}]
@@ -166,6 +170,55 @@ def test_world_and_map_paths_are_relative_to_the_file(tmp_path):
     assert scenario.world_file == (worlds / 'flat.yaml').resolve()
     assert scenario.map_name == str((maps / 'apartment.yaml').resolve())
     assert scenario.world.name == 'apartment'  # the copy's name key, not its file name
+
+
+def test_a_zone_with_an_exclusion_reaches_the_world_and_the_judge(tmp_path):
+    text = MINIMAL + textwrap.indent(textwrap.dedent('''\
+        authorised_zone:
+          include: [[0.1, 0.1], [9.9, 0.1], [9.9, 3.95], [0.1, 3.95]]
+          exclude:
+          - [[5.5, 2.5], [6.5, 2.5], [6.5, 3.9], [5.5, 3.9]]
+        '''), '  ')
+    scenario = load_scenario(write(tmp_path, text))
+    zone = scenario.authorised_zone
+    assert len(zone.exclude) == 1
+    world = build_world(scenario_world_document(scenario))
+    # The simulator's world holds the same zone: inside, in the excluded doorway, outside.
+    assert world.test_zone == zone
+    assert world.in_test_zone(3.0, 2.0) and not world.in_test_zone(6.0, 3.0)
+    assert not world.in_test_zone(3.0, 5.0)
+    # The judge: a true pose in the excluded doorway is a zone exit.
+    record = RunRecord(truth=np.array([[0.0, 3.0, 2.0, 0.0], [4.0, 6.0, 3.0, 0.0]]),
+                       step_results=[StepResult('goal', 'reached', 0, '', 0.0, 5.0)])
+    failed = judge(scenario, record).first_failure
+    assert failed.name == 'stay_in_zone'
+    assert failed.detail == 'stay_in_zone: left the zone at t=4.0 s (6.00, 3.00)'
+
+
+def test_new_steps_and_command_expectations_load(tmp_path):
+    scenario = load_scenario(write(tmp_path, MINIMAL.replace(
+        '  - goal: {x: 5.1, y: 6.2}\n', '''\
+  - cmd_vel: {vx: 0.3, duration_s: 2.0, source: teleop_keyboard}
+  - freeze: {node: amcl, duration_s: 6.0}
+  - command: 'forward 3 m'
+    expect: stopped
+  - command: 'strafe right 3 m'
+    expect: rejected
+''')))
+    teleop, freeze, stopped, rejected = scenario.steps
+    assert teleop == CmdVelStep(0.3, 0.0, 0.0, 2.0, 'teleop_keyboard', 'cmd_vel_teleop')
+    assert freeze == FreezeStep('amcl', 6.0) and freeze.describe() == 'freeze amcl for 6.0 s'
+    assert (stopped.expect, rejected.expect) == ('stopped', 'rejected')
+    record = RunRecord(truth=np.array([[0.0, 3.0, 2.0, 0.0]]), step_results=[
+        StepResult('cmd_vel', 'done', 0, '', 0.0, 2.0),
+        StepResult('freeze', 'done', 0, '', 2.0, 2.0),
+        StepResult('command', 'stopped', 0, 'stopped: forward blocked by collision_monitor '
+                   'STOP PolygonStop', 2.0, 6.0),
+        StepResult('command', 'done', 0, '', 6.0, 21.0)])
+    verdict = judge(scenario, record)
+    assert [c.passed for c in verdict.criteria[:4]] == [True, True, True, False]
+    assert verdict.criteria[3].detail == (
+        "step 4 command 'strafe right 3 m': done in 15.0 s (expected rejected)")
 
 
 def test_an_empty_zone_means_no_zone(tmp_path):
@@ -238,14 +291,23 @@ BAD_BODIES = [
     ('  seed: true\n' + STEPS, 'seed: must be an integer >= 0, not True'),
     ('  seed: -1\n' + STEPS, 'seed: must be an integer >= 0, not -1'),
     ('  authorised_zone: [[0, 0], [1, 1]]\n' + STEPS,
-     'authorised_zone: polygon needs at least 3 points'),
+     'authorised_zone: the polygon needs at least 3 points'),
     ('  authorised_zone: [[0, 0], [9, 7], [9, 0], [0, 7]]\n' + STEPS,
-     'authorised_zone: polygon is self-intersecting'),
+     'authorised_zone: the polygon is self-intersecting'),
     ('  authorised_zone: [[0, 0], [9, .inf], [0, 7]]\n' + STEPS,
-     'authorised_zone[1]: must be a finite number'),
+     'authorised_zone[1]: coordinates must be finite'),
     ('  authorised_zone: [[0, 0], [9], [0, 7]]\n' + STEPS,
-     'authorised_zone[1]: must be an [x, y] point'),
+     'authorised_zone[1]: must be an [x, y] pair of numbers'),
     ('  authorised_zone: 5\n' + STEPS, 'authorised_zone: must be a list of [x, y] points'),
+    ('  authorised_zone: {include: [[0, 0], [9, 0], [9, 7]], exclude: [[[8, 1], [12, 1], '
+     '[8, 2]]]}\n' + STEPS, 'authorised_zone.exclude[0]: vertex 1 is outside the inclusion'),
+    ('  authorised_zone: {exclude: []}\n' + STEPS, 'authorised_zone: include (the inclusion '
+     'polygon) is required'),
+    (STEPS + '  - freeze: {node: amcl}\n', "steps[1].freeze: missing key 'duration_s'"),
+    (STEPS + '  - cmd_vel: {vx: 0.1, duration_s: 1, source: radio}\n',
+     'steps[1].cmd_vel.source: must be one of'),
+    (STEPS + "  - command: 'forward 1 m'\n    expect: crashed\n",
+     'steps[1].expect: must be one of done, stopped, rejected, any'),
     ('  authorised_zone: [[5, 5], [9, 5], [9, 7]]\n' + STEPS,
      'spawn: (2.95, 2) is outside the authorised_zone'),
     ('  moving_obstacles: {name: cat}\n' + STEPS, 'moving_obstacles: must be a list'),
@@ -259,9 +321,9 @@ BAD_BODIES = [
     ('  steps: []\n', 'steps: must be a non-empty list of steps'),
     ('  steps: {goal: {x: 1, y: 1}}\n', 'steps: must be a non-empty list of steps'),
     ('  steps:\n  - goal: {x: 1, y: 1}\n    wait: {duration_s: 1}\n',
-     'steps[0]: needs exactly one of goal, command, cmd_vel, wait, got goal, wait'),
+     'steps[0]: needs exactly one of goal, command, cmd_vel, wait, freeze, got goal, wait'),
     ('  steps:\n  - fly: {x: 1}\n', 'steps[0]: needs exactly one of goal, command, cmd_vel, '
-     'wait, got none'),
+     'wait, freeze, got none'),
     ('  steps:\n  - forward 1 m\n', 'steps[0]: must be a mapping with one of goal'),
     ('  steps:\n  - wait: {duration_s: 1}\n  - goal: {x: 1}\n', "steps[1].goal: missing key 'y'"),
     ('  steps:\n  - wait: {duration_s: 1}\n  - goal: {x: 1, y: 2, yaw: north}\n',
@@ -597,8 +659,8 @@ def test_shipped_spawns_and_goals_are_where_they_must_be(shipped):
             if not isinstance(step, GoalStep):
                 continue
             where = f'{scenario.name} {step.describe()}'
-            zone = np.asarray(scenario.authorised_zone)
-            in_zone = bool(points_in_polygon(np.array([step.x]), np.array([step.y]), zone)[0])
+            in_zone = scenario.authorised_zone.footprint_inside(
+                step.x, step.y, ROBOT.footprint_radius_m)
             if step.expect == 'reached':
                 clearance = NARROW_GOALS.get((scenario.name, goal_index), CLEARANCE_M)
                 assert world.is_free(step.x, step.y, clearance_m=clearance), where
@@ -672,8 +734,9 @@ def test_text_commands_stay_in_open_space_away_from_the_person(shipped):
 
 
 def test_pushed_into_wall_really_drives_into_the_wall(shipped):
+    # Without the command chain, the twist would hit the wall; the chain must stop it.
     scenario = next(s for s in shipped if s.name == 'pushed_into_wall')
-    assert scenario.expect == 'fail' and scenario.criteria.no_collision
+    assert scenario.expect == 'pass' and scenario.criteria.no_collision
     poses = open_loop_poses(scenario)
     hits = [(x, y) for x, y, _ in poses
             if scenario.world.nearest_obstacle(x, y)[1] < ROBOT.footprint_radius_m]
@@ -705,5 +768,4 @@ def test_slippery_floor_and_must_fail_expectations(shipped):
     slippery = by_name['slippery_floor']
     assert slippery.floor_friction_coefficient == 0.2
     assert slippery.criteria.max_localization_error_m == 0.25
-    assert {s.name for s in shipped if s.expect == 'fail'} == {
-        'pushed_into_wall', 'must_fail_timeout'}
+    assert {s.name for s in shipped if s.expect == 'fail'} == {'must_fail_timeout'}

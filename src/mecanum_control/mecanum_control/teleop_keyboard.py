@@ -1,15 +1,17 @@
 """
 teleop_keyboard: drive the robot from the keyboard, like teleop_twist_keyboard.
 
-Reads keys from the terminal (stdin in raw mode) and publishes ``cmd_vel``
+Reads keys from the terminal (stdin in raw mode) and publishes ``cmd_vel_teleop``
 (geometry_msgs/Twist, or TwistStamped with header.frame_id ``frame_id`` when
-``stamped``; base_link, m/s and rad/s) at once on every key. The key bindings, the
+``stamped``; base_link, m/s and rad/s) at once on every key. It is the teleop_keyboard
+input of the robot's command chain (mecanum_navigation config/twist_mux.yaml: above
+navigation and text commands, then collision_monitor and zone_guard). The key bindings, the
 holonomic (shift) mode included, are those of teleop_twist_keyboard; they live in
 :mod:`mecanum_control.teleop_keys`.
 
 Parameters: ``speed_m_s`` (0.3) and ``turn_rad_s`` (1.0) are the starting speeds,
 ``max_speed_m_s`` (0.8) and ``max_turn_rad_s`` (2.5) bound them; ``repeat_rate_hz``
-(10.0) republishes a non-zero twist so motor_controller's command timeout does not stop
+(10.0) republishes a non-zero twist so the command chain's timeouts do not stop
 the robot while a key is held; with no key for ``key_timeout_s`` (0.8, longer than a
 terminal's auto-repeat delay) the twist becomes zero (a lost terminal stops the
 robot); ``stamped`` (false), ``frame_id`` (base_link).
@@ -76,7 +78,7 @@ class TeleopKeyboard(Node):
         self._speed_lines = 0
 
         self.cmd_pub = self.create_publisher(
-            TwistStamped if self.stamped else Twist, 'cmd_vel', 10)
+            TwistStamped if self.stamped else Twist, 'cmd_vel_teleop', 10)
         # Key timing is wall time, also with use_sim_time: keys come from a person.
         self.timer = self.create_timer(self.repeat_period_s, self.on_timer,
                                        clock=Clock(clock_type=ClockType.STEADY_TIME))

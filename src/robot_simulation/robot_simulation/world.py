@@ -15,7 +15,7 @@ y left/north, yaw counter-clockwise from +x. A world file looks like this::
       - {name: table, circle: {center: [6.0, 4.0], radius_m: 0.5}}
       - {name: counter, polygon: [[8.0, 0.1], [11.9, 0.1], [11.9, 0.7], [8.0, 0.7]]}
       map: lab_map.yaml    # optional Nav2 map (a path or package://PKG/path); occupied = obstacle
-      test_zone: [[0.2, 0.2], [11.8, 0.2], [11.8, 8.8], [0.2, 8.8]]   # optional polygon
+      test_zone: [[0.2, 0.2], [11.8, 0.2], [11.8, 8.8], [0.2, 8.8]]   # optional authorised zone
       moving_obstacles:                         # optional, e.g. a person walking a path
       - {name: person, radius_m: 0.25, speed_m_s: 0.8, path: [[5, 5], [9, 5]], loop: true}
       robot_start: {x_m: 1.0, y_m: 1.0, yaw_deg: 0.0}
@@ -48,6 +48,7 @@ from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
 from mecanum_navigation.map_io import (
     find_map_file, load_map, MapError, OccupancyMap, world_to_cell)
+from mecanum_navigation.safety.zone import parse_zone, Zone, ZoneError
 import numpy as np
 import yaml
 
@@ -160,7 +161,7 @@ class World:
     obstacles: Tuple[Obstacle, ...] = ()
     circles: Tuple[CircleObstacle, ...] = ()
     occupancy: Optional[OccupancyMap] = None
-    test_zone: Optional[Polygon] = None
+    test_zone: Optional[Zone] = None
     moving_obstacles: Tuple[MovingObstacle, ...] = ()
     robot_start: Tuple[float, float, float] = (0.0, 0.0, 0.0)
     source: Path = Path('<memory>')
@@ -274,15 +275,7 @@ class World:
         """Return True if (x, y) in metres is inside the test zone, or when none is declared."""
         if self.test_zone is None:
             return True
-        # One point: plain even-odd ray crossing is far cheaper than a numpy call.
-        inside = False
-        polygon = self.test_zone
-        x2, y2 = polygon[-1]
-        for x1, y1 in polygon:
-            if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
-                inside = not inside
-            x2, y2 = x1, y1
-        return inside
+        return self.test_zone.contains_point(x, y)
 
     def to_occupancy_map(self, resolution_m: float = 0.05) -> OccupancyMap:
         """
@@ -583,9 +576,10 @@ class _Parser:
             obstacles.append(obstacle)
             if circle is not None:
                 circles.append(circle)
-        test_zone = None
-        if raw.get('test_zone') is not None:
-            test_zone = self.polygon(raw['test_zone'], 'test_zone', 'polygon')
+        try:
+            test_zone = parse_zone(raw.get('test_zone'), 'test_zone')
+        except ZoneError as error:
+            self.fail('', str(error))
         moving: List[MovingObstacle] = []
         seen = set()
         for index, item in enumerate(self.entries(raw, 'moving_obstacles')):

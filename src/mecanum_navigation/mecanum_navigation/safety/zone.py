@@ -45,7 +45,7 @@ class ZoneError(ValueError):
     """A malformed zone: the message names where (file, key) and what is wrong."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Zone:
     """
     An authorised zone in the map frame: inside ``include`` and outside every ``exclude``.
@@ -58,6 +58,17 @@ class Zone:
     include: np.ndarray
     exclude: Tuple[np.ndarray, ...] = ()
     frame_id: str = 'map'
+
+    def __eq__(self, other: object) -> bool:
+        """Zones are equal when their frame and every polygon's vertices are."""
+        if not isinstance(other, Zone):
+            return NotImplemented
+        return (self.frame_id == other.frame_id and len(self.exclude) == len(other.exclude)
+                and all(np.array_equal(a, b) for a, b in zip(self.polygons(), other.polygons())))
+
+    def __hash__(self) -> int:
+        """Hash the vertices (zones are immutable)."""
+        return hash((self.frame_id, *(polygon.tobytes() for polygon in self.polygons())))
 
     def polygons(self) -> List[np.ndarray]:
         """Return every border polygon: the inclusion first, then the exclusions."""
@@ -77,6 +88,12 @@ class Zone:
         for polygon in self.exclude:
             inside &= ~points_in_polygon(xs, ys, polygon)
         return inside
+
+    def contains_point(self, x: float, y: float) -> bool:
+        """Return whether one point (m) is in the allowed region (no numpy: per-step use)."""
+        if not _point_in_polygon(x, y, self.include):
+            return False
+        return not any(_point_in_polygon(x, y, polygon) for polygon in self.exclude)
 
     def clearance(self, xs, ys) -> np.ndarray:
         """
@@ -171,6 +188,16 @@ def points_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np
             crosses = (y1 > ys) != (y2 > ys)
             x_cross = x1 + (ys - y1) * (x2 - x1) / (y2 - y1)
             inside ^= crosses & (xs < x_cross)
+        x2, y2 = x1, y1
+    return inside
+
+
+def _point_in_polygon(x: float, y: float, polygon: np.ndarray) -> bool:
+    inside = False
+    x2, y2 = polygon[-1]
+    for x1, y1 in polygon:
+        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+            inside = not inside
         x2, y2 = x1, y1
     return inside
 

@@ -1,0 +1,14 @@
+"""Launch the command chain with ros2 launch; the system is command_chain.launch.yaml."""
+
+import os
+
+from launch import LaunchDescription
+from launch.actions import IncludeLaunchDescription
+from launch.launch_description_sources import AnyLaunchDescriptionSource
+
+
+def generate_launch_description():
+    """Include the YAML system description that the pip-setup runner also reads."""
+    here = os.path.dirname(os.path.realpath(__file__))
+    return LaunchDescription([IncludeLaunchDescription(
+        AnyLaunchDescriptionSource(os.path.join(here, 'command_chain.launch.yaml')))])
