@@ -1,4 +1,4 @@
-"""Hand-worked tests of mecanum_navigation.safety.collision_monitor (Nav2 collision_monitor rules)."""
+"""Hand-worked tests of mecanum_navigation.safety.collision_monitor (Nav2's rules)."""
 
 import math
 
