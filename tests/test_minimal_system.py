@@ -2,7 +2,10 @@
 
 robot_controller and robot_simulation run as separate processes started by
 mecanum_bringup.launch_runner, in their own ROS domain, on simulated time that
-this test publishes on /clock.
+this test publishes on /clock. The minimal system has no command chain:
+minimal.launch.yaml remaps robot_controller's chain input cmd_vel_text to the kinematic
+simulation's cmd_vel, and robot_controller, seeing no chain output (cmd_vel_safe), does
+not watch it.
 """
 
 import math
@@ -38,6 +41,14 @@ def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_n
     deadline = time.monotonic() + 20
     while command_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.05)
+    # robot_controller's cmd_vel_text is remapped to cmd_vel (minimal.launch.yaml).
+    while time.monotonic() < deadline and not any(
+            info.node_name == 'robot_controller'
+            for info in node.get_publishers_info_by_topic('/cmd_vel')):
+        time.sleep(0.05)
+    assert [info.node_name for info in node.get_publishers_info_by_topic('/cmd_vel')] == [
+        'robot_controller']
+    assert node.get_publishers_info_by_topic('/cmd_vel_text') == []
     command_pub.publish(String(data='strafe left 0.3 m at 0.3 m/s'))
     status.wait_for(lambda m: m.data == 'accepted: strafe left 0.3 m at 0.3 m/s')
     cmd_vel.wait_for(lambda m: abs(m.linear.y - 0.3) < 1e-9 and m.linear.x == 0.0)
@@ -62,6 +73,8 @@ def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_n
 
 def test_a_command_sent_before_the_clock_starts_waits_for_it(start_system, test_node):
     """
+    Hold a command sent before the clock starts, then run it for its full duration.
+
     On sim time a node's clock reads 0 until its first /clock (DDS discovery can take
     seconds on a loaded machine). A timed command accepted then must neither move the
     robot nor be cut short: it starts at the clock's first tick and lasts its duration.
@@ -92,7 +105,6 @@ def test_a_command_sent_before_the_clock_starts_waits_for_it(start_system, test_
 
 
 def test_respawned_node_rejoins_the_graph(start_system, test_node, processes_with_marker):
-    node = test_node.node
     test_node.start_clock()
     robot_status = test_node.record(String, 'robot_status')
     system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
@@ -106,7 +118,7 @@ def test_respawned_node_rejoins_the_graph(start_system, test_node, processes_wit
 
 
 def test_bad_launch_argument_is_refused_before_anything_starts(start_system,
-                                                              processes_with_marker):
+                                                               processes_with_marker):
     system = start_system('mecanum_bringup', 'minimal.launch.yaml', 'no_such_arg:=1')
     assert system.process.wait(timeout=20) == 2
     assert 'unknown launch argument(s) no_such_arg' in system.output()

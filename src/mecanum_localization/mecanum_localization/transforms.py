@@ -196,6 +196,30 @@ class TransformBuffer:
         return self._to_ancestor(target_path, common, time_s).inverse().compose(
             self._to_ancestor(source_path, common, time_s))
 
+    def oldest_link(self, target: str, source: str) -> Optional[Tuple[float, str]]:
+        """
+        Return how old the latest target <- source pose is: its stalest timed link.
+
+        For each timed (not static) link on the chain joining target and source, take
+        the stamp (s) of its newest transform; return the oldest of those with the link's
+        name, (stamp, 'parent -> child'). None when every link is static (or the frames
+        are the same); TransformError when they are not connected.
+        """
+        target, source = target.lstrip('/'), source.lstrip('/')
+        if target == source:
+            return None
+        target_path, source_path = self._path_to_root(target), self._path_to_root(source)
+        common = next((frame for frame in source_path if frame in set(target_path)), None)
+        if common is None:
+            raise TransformError(f'{target!r} and {source!r} are not part of the same tree')
+        oldest: Optional[Tuple[float, str]] = None
+        for path in (target_path, source_path):
+            for child in path[:path.index(common)]:
+                link = self._links[child]
+                if not link.static and (oldest is None or link.times[-1] < oldest[0]):
+                    oldest = (link.times[-1], f'{link.parent} -> {child}')
+        return oldest
+
     def can_transform(self, target: str, source: str, time_s: Optional[float] = None) -> bool:
         """Tell whether lookup(target, source, time_s) would succeed."""
         try:

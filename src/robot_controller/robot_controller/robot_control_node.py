@@ -1,31 +1,92 @@
 """
-robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel``.
+robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel_text``.
 
 Subscribes ``control_command`` (std_msgs/String), e.g. "forward 0.5 m",
 "strafe left 2 s", "rotate right 90 deg", "stop" (grammar in
-:mod:`robot_controller.command_parser`). Publishes ``cmd_vel``
-(geometry_msgs/Twist, base_link frame, m/s and rad/s) at ``publish_rate_hz``
-while a motion lasts, then one zero twist; and ``control_status``
+:mod:`robot_controller.command_parser`). Publishes ``cmd_vel_text``
+(geometry_msgs/Twist, base_link frame, m/s and rad/s), its input of the command chain
+(twist_mux -> collision_monitor -> zone_guard -> ``cmd_vel_safe`` -> motor_controller),
+at ``publish_rate_hz`` while a motion lasts, then one zero twist; and ``control_status``
 (std_msgs/String): ``accepted: <command>``, ``done: <motion>`` (finished, or
-``done: stop``), ``interrupted: <motion>`` (replaced or stopped before its end)
-and ``rejected: <reason>``. A new command replaces the running one; a rejected
-command never moves the robot (the running motion, if any, is stopped).
+``done: stop``), ``interrupted: <motion>`` (replaced or stopped before its end),
+``stopped: <motion> blocked by <reason>`` (the chain held it, below) and
+``rejected: <reason>``. A new command replaces the running one; a rejected command never
+moves the robot (the running motion, if any, is stopped). Stop is never refused.
 
 Motions are timed on the node's clock. On simulated time (``use_sim_time``) that clock
 reads 0 until the first /clock message arrives, which on a loaded machine can be seconds
 after the node is up (DDS discovery). A command accepted before then waits, without
 moving the robot, and starts at the clock's first tick, so that it still lasts its full
 duration.
+
+The authorised zone: with a zone file (``zone_file``), a command is checked before it
+starts: its motion (the constant twist for its duration, integrated from the robot's
+pose; the zone guard's check, :mod:`robot_controller.zone_check`) must keep the
+footprint (``footprint_radius_m``) at least ``zone_margin_m`` inside the zone along the
+whole path. Otherwise it is rejected, with a warning and no twist sent: ``rejected:
+<command>: the footprint would come within 0.05 m of the border of the authorised zone
+at (x, y) after t s of the T s motion`` (the zone guard's words). The pose is
+``global_frame`` -> ``robot_base_frame`` from /tf and /tf_static; with none, or one whose
+oldest dynamic link's newest transform is older than ``pose_timeout_s``, the command is
+rejected: ``rejected: cannot check the authorised zone: no recent map -> base_link pose
+(is localisation running?)``. With a zone, a command that arrives before the clock
+starts is checked (and only then accepted) at the clock's first tick.
+
+Stop short: while a motion runs, the node watches the chain's output
+(``chain_output_topic``) and the stages' states (``collision_monitor_state``,
+``zone_guard_state``; std_msgs/String). When the output stays below
+``blocked_speed_ratio`` of the commanded speed for ``blocked_time_s`` without a break, or
+the chain sends nothing for that long, the motion ends at once (zero twist, a warning,
+``stopped: <motion> blocked by collision_monitor STOP PolygonStop``, or ``... blocked by
+no output from the command chain``; rules in :mod:`robot_controller.blocked_detector`).
+The watch starts once the chain has shown itself (a publisher of, or a message on,
+``chain_output_topic``), so the minimal system, which has no chain, runs as before.
+
+Parameters (``config/robot_controller.yaml``): ``linear_speed_mps`` (0.2),
+``angular_speed_radps`` (0.5), ``max_linear_speed_mps`` (0.5),
+``max_angular_speed_radps`` (1.5), ``default_duration_s`` (2.0), ``max_duration_s``
+(60.0), ``publish_rate_hz`` (20.0, > 0); ``zone_file`` ('' = no zone, no check; a zone
+file of :mod:`mecanum_navigation.safety.zone`); ``footprint_radius_m`` (> 0; from
+motor_params.yaml, which launch files pass; the installed file's value by default);
+``zone_margin_m`` (0.05, >= 0); ``global_frame`` ('map'); ``robot_base_frame``
+('base_link'); ``pose_timeout_s`` (1.0, > 0); ``chain_output_topic`` ('cmd_vel_safe';
+'' = do not watch the chain, never stop short); ``blocked_speed_ratio`` (0.1, in (0, 1));
+``blocked_time_s`` (0.5, > 0).
 """
 
+import math
 import sys
 
 from geometry_msgs.msg import Twist
 from mecanum_control.node_main import run_node
+from mecanum_control.parameters import declare_typed
+from mecanum_control.robot_config import default_config_path, parameters_from_yaml
+from mecanum_localization.tf_listener import TransformListener
+from mecanum_localization.transforms import TransformBuffer, TransformError
+from mecanum_navigation.safety.zone import load_zone_file
 from rclpy.duration import Duration
 from rclpy.node import Node
+from robot_controller.blocked_detector import BlockedDetector
 from robot_controller.command_parser import CommandError, CommandLimits, Motion, parse_command
+from robot_controller.zone_check import zone_refusal
 from std_msgs.msg import String
+
+#: The chain's stages whose state topics (std_msgs/String) explain a stop.
+STATE_TOPICS = {'collision_monitor': 'collision_monitor_state',
+                'zone_guard': 'zone_guard_state'}
+
+
+def _positive(name: str, value: float) -> float:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f'parameter {name} must be finite and > 0, got {value}')
+    return value
+
+
+def _frame(name: str, value: str) -> str:
+    frame = value.strip().lstrip('/')
+    if not frame:
+        raise ValueError(f'parameter {name} must name a frame, got {value!r}')
+    return frame
 
 
 class RobotController(Node):
@@ -50,17 +111,78 @@ class RobotController(Node):
         publish_rate_hz = self.declare_parameter('publish_rate_hz', 20.0).value
         if not publish_rate_hz > 0.0:
             raise ValueError(f'publish_rate_hz must be positive, got {publish_rate_hz}')
+        self._declare_zone_parameters()
+        self._declare_chain_parameters()
 
         self.motion = None
         self.motion_text = ''
         self.motion_end = None   # None while a motion waits for the clock to start
+        self.accepted = False    # False while a motion waits for its zone check
 
-        self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
         self.status_pub = self.create_publisher(String, 'control_status', 10)
         self.command_sub = self.create_subscription(
             String, 'control_command', self.on_command, 10)
+        self.frames = None
+        self.tf_listener = None
+        if self.zone is not None:
+            self.frames = TransformBuffer()
+            self.tf_listener = TransformListener(self, self.frames)
+        self.chain_seen = False
+        self.chain_sub = None
+        if self.chain_output_topic:
+            self.chain_sub = self.create_subscription(
+                Twist, self.chain_output_topic, self.on_chain_output, 10)
+            for stage, topic in STATE_TOPICS.items():
+                self.create_subscription(
+                    String, topic, lambda msg, stage=stage: self.detector.on_state(
+                        stage, msg.data), 10)
         self.timer = self.create_timer(1.0 / publish_rate_hz, self.on_timer)
-        self.get_logger().info('Robot controller ready; send text commands on control_command')
+        zone_text = (f'zone {self.zone_file} (footprint {self.footprint_radius_m:g} m + '
+                     f'margin {self.zone_margin_m:g} m)' if self.zone is not None
+                     else 'no authorised zone')
+        chain_text = (f'watching {self.chain_sub.topic_name}' if self.chain_sub is not None
+                      else 'not watching the command chain')
+        self.get_logger().info(
+            f'Robot controller ready; send text commands on control_command '
+            f'({self.cmd_vel_pub.topic_name}; {zone_text}; {chain_text})')
+
+    # -- parameters ---------------------------------------------------------------------
+
+    def _declare_zone_parameters(self) -> None:
+        """Declare and check the authorised zone's parameters; load the zone file."""
+        self.zone_file = declare_typed(self, 'zone_file', '').strip()
+        radius_default = parameters_from_yaml(default_config_path()).get('footprint_radius_m')
+        self.footprint_radius_m = _positive(
+            'footprint_radius_m', declare_typed(self, 'footprint_radius_m',
+                                                float(radius_default), float))
+        self.zone_margin_m = declare_typed(self, 'zone_margin_m', 0.05)
+        if not (math.isfinite(self.zone_margin_m) and self.zone_margin_m >= 0.0):
+            raise ValueError(f'parameter zone_margin_m must be finite and >= 0, got '
+                             f'{self.zone_margin_m}')
+        self.global_frame = _frame('global_frame', declare_typed(self, 'global_frame', 'map'))
+        self.base_frame = _frame('robot_base_frame',
+                                 declare_typed(self, 'robot_base_frame', 'base_link'))
+        self.pose_timeout_s = _positive('pose_timeout_s',
+                                        declare_typed(self, 'pose_timeout_s', 1.0))
+        # ZoneError (a ValueError) names the file and what is wrong with it.
+        self.zone = load_zone_file(self.zone_file) if self.zone_file else None
+        if self.zone_file and self.zone is None:
+            self.get_logger().info(f'{self.zone_file} declares no authorised zone: '
+                                   'commands are not checked against one')
+
+    def _declare_chain_parameters(self) -> None:
+        """Declare and check the parameters of the stop-short watch of the chain."""
+        self.chain_output_topic = declare_typed(
+            self, 'chain_output_topic', 'cmd_vel_safe').strip()
+        ratio = declare_typed(self, 'blocked_speed_ratio', 0.1)
+        blocked_time_s = declare_typed(self, 'blocked_time_s', 0.5)
+        try:
+            self.detector = BlockedDetector(ratio, blocked_time_s)
+        except ValueError as error:
+            raise ValueError(f'parameter {error}') from None
+
+    # -- commands -----------------------------------------------------------------------
 
     def on_command(self, msg: String) -> None:
         """Parse a command and start (or stop) the motion it describes."""
@@ -78,54 +200,131 @@ class RobotController(Node):
             return
         self.motion = motion
         self.motion_text = text
-        self.report(f'accepted: {text}')
+        self.accepted = self.zone is None
+        if self.accepted:
+            self.report(f'accepted: {text}')
         if self.clock_started():
-            self.start_motion()
+            self.begin()
         else:
+            check = '' if self.accepted else ' (and its zone check)'
             self.get_logger().warning(
-                f'Holding {text!r} until the clock starts (use_sim_time is set and no '
+                f'Holding {text!r}{check} until the clock starts (use_sim_time is set and no '
                 '/clock message has arrived yet)')
 
     def clock_started(self) -> bool:
         """Whether the node's clock runs: simulated time reads 0 until the first /clock."""
         return self.get_clock().now().nanoseconds > 0
 
+    def begin(self) -> None:
+        """Check the waiting motion against the zone (if not yet done), then start it."""
+        if not self.accepted:
+            problem = self.zone_problem(self.motion, self.motion_text)
+            if problem:
+                self.get_logger().warning(f'Rejected command {self.motion_text!r}: {problem}')
+                self.motion = None
+                self.report(f'rejected: {problem}')
+                return
+            self.accepted = True
+            self.report(f'accepted: {self.motion_text}')
+        self.start_motion()
+
+    def zone_problem(self, motion: Motion, text: str) -> str:
+        """Return why motion may not run in the authorised zone, or '' if it may."""
+        now_s = self.get_clock().now().nanoseconds * 1e-9
+        no_pose = (f'cannot check the authorised zone: no recent {self.global_frame} -> '
+                   f'{self.base_frame} pose (is localisation running?)')
+        try:
+            pose = self.frames.lookup(self.global_frame, self.base_frame)
+            oldest = self.frames.oldest_link(self.global_frame, self.base_frame)
+        except TransformError as error:
+            self.get_logger().info(f'No {self.global_frame} -> {self.base_frame} pose: '
+                                   f'{error}')
+            return no_pose
+        if oldest is not None and now_s - oldest[0] > self.pose_timeout_s:
+            self.get_logger().info(
+                f'The {self.global_frame} -> {self.base_frame} pose is '
+                f'{now_s - oldest[0]:.2f} s old (its link {oldest[1]}; pose_timeout_s '
+                f'{self.pose_timeout_s:g})')
+            return no_pose
+        return zone_refusal(self.zone, (pose.x, pose.y, pose.yaw), motion, text,
+                            self.footprint_radius_m, self.zone_margin_m)
+
     def start_motion(self) -> None:
         """Start timing the accepted motion now, and send its first twist."""
         motion = self.motion
-        self.motion_end = self.get_clock().now() + Duration(seconds=motion.duration_s)
+        now = self.get_clock().now()
+        self.motion_end = now + Duration(seconds=motion.duration_s)
+        self.detector.start(now.nanoseconds * 1e-9, motion.vx, motion.vy, motion.wz)
         self.get_logger().info(
             f'Executing {self.motion_text!r}: vx={motion.vx:.3f} m/s vy={motion.vy:.3f} m/s '
             f'wz={motion.wz:.3f} rad/s for {motion.duration_s:.2f} s')
         self.publish_twist(motion)
 
     def on_timer(self) -> None:
-        """Keep publishing the running motion, and end it when its time is up."""
+        """Keep publishing the running motion; end it when its time is up or it is held."""
         if self.motion is None:
             return
         if self.motion_end is None:   # accepted before the clock started
             if self.clock_started():
-                self.start_motion()
+                self.begin()
             return
-        if self.get_clock().now() >= self.motion_end:
+        now = self.get_clock().now()
+        if now >= self.motion_end:
             self.finish(f'done: {self.motion.name}')
-        else:
-            self.publish_twist(self.motion)
+            return
+        blocked = self.detector.check(now.nanoseconds * 1e-9) if self.watching_chain() \
+            else None
+        if blocked:
+            self.get_logger().warning(
+                f'Stopping {self.motion_text!r} short: the command chain holds the robot '
+                f'({blocked})')
+            self.finish(f'stopped: {self.motion.name} blocked by {blocked}')
+            return
+        self.publish_twist(self.motion)
+
+    def watching_chain(self) -> bool:
+        """
+        Whether the chain's output is watched: there is one and it has shown itself.
+
+        When it shows itself (a publisher appears) during a motion, the watch of that
+        motion starts then, so that late discovery is not taken for a silent chain.
+        """
+        if self.chain_sub is None:
+            return False
+        if not self.chain_seen and self.count_publishers(self.chain_sub.topic_name) > 0:
+            self.chain_seen = True
+            motion = self.motion
+            self.detector.start(self.get_clock().now().nanoseconds * 1e-9,
+                                motion.vx, motion.vy, motion.wz)
+        return self.chain_seen
+
+    def on_chain_output(self, msg: Twist) -> None:
+        """Take one output twist of the command chain."""
+        self.chain_seen = True
+        self.detector.on_output(self.get_clock().now().nanoseconds * 1e-9,
+                                msg.linear.x, msg.linear.y, msg.angular.z)
 
     def interrupt(self) -> None:
         """End the running motion early, if there is one."""
-        if self.motion is not None:
+        if self.motion is None:
+            return
+        if self.accepted:
             self.finish(f'interrupted: {self.motion.name}')
+        else:   # still waiting for its zone check: it never was accepted
+            self.get_logger().info(f'Dropping {self.motion_text!r} (replaced before its '
+                                   'zone check)')
+            self.motion = None
 
     def finish(self, status: str) -> None:
         """Stop the robot and report status."""
         self.motion = None
         self.motion_end = None
+        self.detector.stop()
         self.cmd_vel_pub.publish(Twist())
         self.report(status)
 
     def publish_twist(self, motion: Motion) -> None:
-        """Publish the motion's body twist on cmd_vel."""
+        """Publish the motion's body twist on cmd_vel_text."""
         twist = Twist()
         twist.linear.x = motion.vx
         twist.linear.y = motion.vy

@@ -253,6 +253,13 @@ def _build(include: Any, exclude: Sequence[Any], frame_id: Any, where: str,
         if np.any(outside):
             raise ZoneError(f'{name}: vertex {int(np.argmax(outside))} is outside the '
                             'inclusion polygon (exclusions must lie inside it)')
+        # A concave inclusion can hold every vertex while an edge crosses its notch.
+        for i in range(len(vertices)):
+            for j in range(len(inclusion)):
+                if _segments_touch(vertices[i], vertices[(i + 1) % len(vertices)],
+                                   inclusion[j], inclusion[(j + 1) % len(inclusion)]):
+                    raise ZoneError(f'{name}: edge {i} crosses edge {j} of the inclusion '
+                                    'polygon (exclusions must lie inside it)')
         exclusions.append(vertices)
     return Zone(inclusion, tuple(exclusions), 'map')
 

@@ -1,0 +1,230 @@
+"""
+Integration: robot_controller as a source of the command chain, over real DDS.
+
+robot_controller runs alone (launch_runner, its own ROS domain, simulated time that
+this test publishes on /clock) with an authorised zone: a 3 m x 3 m room. The test
+plays everything around it: /tf (map -> odom -> base_link, the robot at (1, 1) facing
++x) and the command chain, which either passes what robot_controller sends on
+cmd_vel_text on to cmd_vel_safe, holds the robot (zero on cmd_vel_safe and
+'STOP PolygonStop' on collision_monitor_state, as the collision monitor does), or says
+nothing at all.
+"""
+
+from pathlib import Path
+import re
+import subprocess
+import threading
+import time
+
+from geometry_msgs.msg import TransformStamped, Twist
+from mecanum_navigation.safety.zone import make_zone, zone_file_text
+import pytest
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+import yaml
+
+pytestmark = pytest.mark.integration
+
+NO_POSE = ('rejected: cannot check the authorised zone: no recent map -> base_link pose '
+           '(is localisation running?)')
+
+
+def write_launch(directory):
+    """Write the zone file and the launch file of robot_controller alone; return its path."""
+    zone_path = directory / 'zone.yaml'
+    zone_path.write_text(zone_file_text(make_zone([[0, 0], [3, 0], [3, 3], [0, 3]])))
+    launch = {'launch': [{'node': {
+        'pkg': 'robot_controller', 'exec': 'robot_control_node', 'name': 'robot_controller',
+        'param': [
+            {'from': '$(find-pkg-share robot_controller)/config/robot_controller.yaml'},
+            {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
+            {'name': 'zone_file', 'value': str(zone_path)},
+            {'name': 'use_sim_time', 'value': True}]}}]}
+    path = directory / 'robot_controller_chain.launch.yaml'
+    path.write_text(yaml.safe_dump(launch, sort_keys=False))
+    return path
+
+
+class World:
+    """The robot's pose on /tf and the command chain, played by the test node."""
+
+    def __init__(self, test_node):
+        """Create the publishers; the chain passes commands on until told otherwise."""
+        self.test_node = test_node
+        node = test_node.node
+        self.chain = 'pass'        # 'pass', 'block' or 'silent'
+        self.publishing_tf = threading.Event()
+        self.tf_pub = node.create_publisher(TFMessage, '/tf', 100)
+        self.safe_pub = node.create_publisher(Twist, 'cmd_vel_safe', 10)
+        self.state_pub = node.create_publisher(String, 'collision_monitor_state', 10)
+        node.create_subscription(Twist, 'cmd_vel_text', self.on_command, 10)
+        threading.Thread(target=self._publish_tf, daemon=True).start()
+
+    def on_command(self, msg):
+        """Play the chain: one output (and state) per input, as its stages do."""
+        if self.chain == 'pass':
+            self.safe_pub.publish(msg)
+            self.state_pub.publish(String(data='DO_NOTHING'))
+        elif self.chain == 'block':
+            self.safe_pub.publish(Twist())
+            self.state_pub.publish(String(data='STOP PolygonStop'))
+
+    def _publish_tf(self):
+        while self.test_node.context.ok():
+            if self.publishing_tf.is_set():
+                sec, nanosec = divmod(self.test_node.clock_ns, 10 ** 9)
+                msg = TFMessage(transforms=[self._transform('map', 'odom', 0.0, sec, nanosec),
+                                            self._transform('odom', 'base_link', 1.0, sec,
+                                                            nanosec)])
+                try:
+                    self.tf_pub.publish(msg)
+                except Exception:  # noqa: B902 - context shut down
+                    return
+            time.sleep(0.05)
+
+    @staticmethod
+    def _transform(parent, child, xy, sec, nanosec):
+        msg = TransformStamped()
+        msg.header.frame_id, msg.child_frame_id = parent, child
+        msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+        msg.transform.translation.x = msg.transform.translation.y = xy
+        msg.transform.rotation.w = 1.0
+        return msg
+
+
+def wait_since(recorder, start, predicate, timeout=10.0):
+    """Return the first message received since monotonic time start matching predicate."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for msg in recorder.since(start):
+            if predicate(msg):
+                return msg
+        time.sleep(0.02)
+    raise AssertionError(f'no matching message within {timeout} s; got '
+                         f'{[getattr(m, "data", m) for m in recorder.since(start)]}')
+
+
+def is_zero(twist):
+    return (twist.linear.x, twist.linear.y, twist.angular.z) == (0.0, 0.0, 0.0)
+
+
+def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
+    node = test_node.node
+    test_node.start_clock()
+    world = World(test_node)
+    status = test_node.record(String, 'control_status')
+    cmd = test_node.record(Twist, 'cmd_vel_text')
+    command_pub = node.create_publisher(String, 'control_command', 10)
+
+    def send(text):
+        start = time.monotonic()
+        command_pub.publish(String(data=text))
+        return start
+
+    system = start_system(str(write_launch(tmp_path)))
+    system.wait_for_line(r'\[robot_controller\].*ready.*/cmd_vel_text; zone .*watching '
+                         r'/cmd_vel_safe')
+    deadline = time.monotonic() + 20
+    while command_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+    # No pose: every command but stop is refused, and nothing is sent.
+    start = send('forward 0.2 m')
+    wait_since(status, start, lambda m: m.data == NO_POSE)
+    start = send('stop')
+    wait_since(status, start, lambda m: m.data == 'done: stop')
+    assert all(is_zero(m) for m in cmd.since(0.0))
+
+    # The pose arrives (its discovery takes a moment: resend until it is seen).
+    world.publishing_tf.set()
+    deadline = time.monotonic() + 15
+    while True:
+        start = send('forward 0.2 m')
+        reply = wait_since(status, start, lambda m: m.data.startswith(('accepted', 'rejected')))
+        if reply.data == 'accepted: forward 0.2 m' or time.monotonic() > deadline:
+            break
+        assert reply.data == NO_POSE
+        time.sleep(0.2)
+    assert reply.data == 'accepted: forward 0.2 m'
+    # Accepted: it drives through the (passing) chain for its 1 s and ends done.
+    wait_since(cmd, start, lambda m: m.linear.x == pytest.approx(0.2))
+    wait_since(status, start, lambda m: m.data.startswith(('done', 'stopped')))
+    assert [m.data for m in status.since(start)][-1] == 'done: forward'
+    wait_since(cmd, start, is_zero)        # its final zero twist
+
+    # A command leaving the zone is refused before it starts: no twist at all. The stop
+    # that follows sends one zero twist; anything the refused command had sent would
+    # have arrived before it (one writer: in order).
+    start = send('forward 2 m')
+    wait_since(status, start, lambda m: m.data.startswith('rejected'))
+    replies = [m.data for m in status.since(start)]
+    # From (1, 1) east: 0.25 m (footprint + margin) from the border x = 3 at x = 2.75.
+    assert len(replies) == 1 and replies[0].startswith('rejected: forward 2 m: ')
+    assert 'authorised zone at (2.76, 1.00)' in replies[0]
+    system.wait_for_line(r'\[robot_controller\].*Rejected command .forward 2 m.')
+    send('stop')
+    wait_since(status, start, lambda m: m.data == 'done: stop')
+    wait_since(cmd, start, is_zero)
+    assert len(cmd.since(start)) == 1
+
+    # The chain holds the robot: the motion stops short after blocked_time_s (0.5 s).
+    world.chain = 'block'
+    start = send('strafe left 1 m')        # 5 s if not held
+    wait_since(status, start, lambda m: m.data == 'accepted: strafe left 1 m')
+    accepted_ns = test_node.clock_ns
+    wait_since(status, start, lambda m: m.data.startswith(('done', 'stopped')))
+    held_s = (test_node.clock_ns - accepted_ns) * 1e-9
+    assert [m.data for m in status.since(start)][-1] == \
+        'stopped: strafe left blocked by collision_monitor STOP PolygonStop'
+    assert 0.45 <= held_s <= 1.5
+    system.wait_for_line(r'\[robot_controller\].*Stopping .strafe left 1 m. short')
+    # It sent its twist until then, then one zero twist and nothing more (the stop's
+    # zero twist comes next).
+    stop_start = send('stop')
+    wait_since(status, stop_start, lambda m: m.data == 'done: stop')
+    deadline = time.monotonic() + 10
+    while sum(is_zero(m) for m in cmd.since(start)) < 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    twists = cmd.since(start)
+    first_zero = next(i for i, m in enumerate(twists) if is_zero(m))
+    assert first_zero >= 1 and all(m.linear.y == pytest.approx(0.2)
+                                   for m in twists[:first_zero])
+    assert all(is_zero(m) for m in twists[first_zero:]) and len(twists) == first_zero + 2
+
+    # The chain says nothing at all (e.g. it is down): stopped as well.
+    world.chain = 'silent'
+    start = send('rotate left 2 s')
+    wait_since(status, start, lambda m: m.data.startswith(('done', 'stopped')))
+    assert [m.data for m in status.since(start)] == [
+        'accepted: rotate left 2 s',
+        'stopped: rotate left blocked by no output from the command chain']
+    wait_since(cmd, start, is_zero)
+
+    # The pose goes stale (older than pose_timeout_s, 1 s): refused again.
+    world.publishing_tf.clear()
+    stale_from_ns = test_node.clock_ns
+    deadline = time.monotonic() + 10
+    while test_node.clock_ns - stale_from_ns < 1.3e9 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    start = send('forward 0.2 m')
+    wait_since(status, start, lambda m: m.data == NO_POSE)
+
+
+@pytest.mark.parametrize('parameter, value, message', [
+    ('zone_file', '/nonexistent/zone.yaml', 'cannot read the zone file'),
+    ('zone_margin_m', '-0.1', 'parameter zone_margin_m must be finite and >= 0'),
+    ('pose_timeout_s', '0.0', 'parameter pose_timeout_s must be finite and > 0'),
+    ('blocked_speed_ratio', '1.5', r'parameter blocked_speed_ratio must be within \(0, 1\)'),
+    ('global_frame', "''", 'parameter global_frame must name a frame'),
+])
+def test_bad_parameters_stop_the_node_with_a_clear_message(ros_env, parameter, value,
+                                                           message):
+    """The node exits 2 with the reason at FATAL level and no traceback."""
+    result = subprocess.run(
+        ['./mecanum', 'run', 'robot_controller', 'robot_control_node', '--ros-args', '-p',
+         f'{parameter}:={value}'], env=ros_env, capture_output=True, text=True, timeout=60,
+        cwd=str(Path(__file__).resolve().parents[1]))
+    output = result.stdout + result.stderr
+    assert result.returncode == 2, output
+    assert 'Traceback' not in output
+    assert re.search(r'\[FATAL\].*' + message, output), output

@@ -1,0 +1,277 @@
+"""
+Integration: the zone_guard node in its own process, on simulated time.
+
+The test node plays the rest of the robot: /clock, the transforms map -> odom (as amcl:
+future-dated by 0.5 s) and odom -> base_link (as the EKF: stamped now) on /tf, amcl_pose
+with its covariance, and commands on cmd_vel_monitored about every 50 ms; it records
+cmd_vel_safe, zone_guard_state and /diagnostics. The zone is a 4 m square written into a zone file;
+the expected twists are what the pure core computes for the same pose (its own tests
+work the numbers out by hand: 1 m from the border, 0.75 m of travel is allowed).
+"""
+
+import math
+from pathlib import Path
+import re
+import subprocess
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped, Twist
+from mecanum_control.robot_config import default_config_path, load_robot_config
+from mecanum_localization.transforms import PlanarTransform
+from mecanum_navigation.safety.zone import load_zone_file
+from mecanum_navigation.safety.zone_guard import guard_scale
+import numpy as np
+import pytest
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+import yaml
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[1]
+PARAMS = yaml.safe_load(
+    (REPO / 'src/mecanum_navigation/config/zone_guard.yaml').read_text()
+)['zone_guard']['ros__parameters']
+RADIUS_M = load_robot_config(default_config_path()).footprint_radius_m
+SQUARE = 'authorised_zone:\n  include: [[0, 0], [4, 0], [4, 4], [0, 4]]\n'
+#: Where odom is in map (as if amcl had corrected some drift).
+MAP_TO_ODOM = PlanarTransform(0.5, -0.3, 0.4)
+#: amcl future-dates map -> odom by its transform_tolerance.
+AMCL_TOLERANCE_S = 0.5
+
+
+def write_launch(directory: Path, zone_file: str) -> Path:
+    """Write the test system: the zone guard alone, as command_chain.launch.yaml starts it."""
+    launch = {'launch': [
+        {'node': {'pkg': 'mecanum_navigation', 'exec': 'zone_guard', 'name': 'zone_guard',
+                  'param': [
+                      {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
+                      {'from': '$(find-pkg-share mecanum_navigation)/config/zone_guard.yaml'},
+                      {'name': 'zone_file', 'value': zone_file},
+                      {'name': 'use_sim_time', 'value': True}]}},
+    ]}
+    path = directory / 'zone_guard_test.launch.yaml'
+    path.write_text(yaml.safe_dump(launch, sort_keys=False))
+    return path
+
+
+def transform(parent, child, planar, stamp_ns):
+    """Return a TransformStamped of a planar transform."""
+    msg = TransformStamped()
+    msg.header.frame_id, msg.child_frame_id = parent, child
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10 ** 9)
+    msg.transform.translation.x, msg.transform.translation.y = planar.x, planar.y
+    msg.transform.rotation.z = math.sin(planar.yaw / 2.0)
+    msg.transform.rotation.w = math.cos(planar.yaw / 2.0)
+    return msg
+
+
+class Robot:
+    """Publishes /tf (map -> odom, odom -> base_link) and commands from a thread (~20 Hz)."""
+
+    def __init__(self, test_node):
+        """Create the publishers; start() begins publishing."""
+        self.test_node = test_node
+        node = test_node.node
+        self.tf_pub = node.create_publisher(TFMessage, '/tf', QoSProfile(depth=100))
+        self.cmd_pub = node.create_publisher(Twist, PARAMS['cmd_vel_in_topic'], 10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.covariance_pub = node.create_publisher(
+            PoseWithCovarianceStamped, PARAMS['pose_covariance_topic'], latched)
+        self.pose = None            # (x, y, yaw) of base_link in map; None: no /tf
+        self.ekf = True             # publish odom -> base_link
+        self.command = None
+        self.last_ekf_stamp_s = math.nan
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self):
+        """Start publishing."""
+        self._thread.start()
+
+    def stop(self):
+        """Stop the thread."""
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+    def publish_sigma(self, sigma_m):
+        """Publish amcl_pose with a position standard deviation sigma_m (m) along y."""
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = 'map'
+        covariance = [0.0] * 36
+        covariance[0], covariance[7], covariance[35] = (sigma_m / 2) ** 2, sigma_m ** 2, 0.01
+        msg.pose.covariance = covariance
+        self.covariance_pub.publish(msg)
+
+    def _run(self):
+        while not self._stop.is_set():
+            pose = self.pose
+            if pose is not None:
+                now_ns = self.test_node.clock_ns
+                future_ns = now_ns + int(AMCL_TOLERANCE_S * 1e9)
+                transforms = [transform('map', 'odom', MAP_TO_ODOM, future_ns)]
+                if self.ekf:
+                    odom_to_base = MAP_TO_ODOM.inverse().compose(PlanarTransform(*pose))
+                    transforms.append(transform('odom', 'base_link', odom_to_base, now_ns))
+                    self.last_ekf_stamp_s = now_ns * 1e-9
+                self.tf_pub.publish(TFMessage(transforms=transforms))
+            command = self.command
+            if command is not None:
+                msg = Twist()
+                msg.linear.x, msg.linear.y, msg.angular.z = (float(v) for v in command)
+                self.cmd_pub.publish(msg)
+            time.sleep(0.05)
+
+
+def twist_of(msg):
+    """Return (vx, vy, wz) of a Twist."""
+    return np.array([msg.linear.x, msg.linear.y, msg.angular.z])
+
+
+def expected(zone, pose, command, margin_m):
+    """Return the twist the core allows and its scale."""
+    result = guard_scale(zone, pose, command, RADIUS_M, margin_m, PARAMS['horizon_s'])
+    return np.array(command) * result.scale, result.scale
+
+
+def settle(out, state, twist, state_pattern, count=3):
+    """Wait for the output twist and a matching state; check the next count outputs."""
+    out.wait_for_new(lambda m: np.allclose(twist_of(m), twist, rtol=0.0, atol=1e-6))
+    state.wait_for_new(lambda m: m.data.startswith(state_pattern))
+    start = time.monotonic()
+    deadline = start + 10.0
+    while len(out.since(start)) < count and time.monotonic() < deadline:
+        time.sleep(0.02)
+    following = out.since(start)
+    assert len(following) >= count
+    for msg in following:
+        assert twist_of(msg) == pytest.approx(twist, abs=1e-6)
+
+
+def wait_for_diagnostics(diagnostics, level, message):
+    """Wait for a new /diagnostics status of the guard with level and message."""
+    diagnostics.wait_for_new(lambda m: any(
+        s.name == 'zone_guard: Authorised zone' and s.level == level
+        and s.message.startswith(message) for s in m.status), timeout=5.0)
+
+
+def test_commands_are_kept_inside_the_zone(start_system, test_node, tmp_path):
+    zone_path = tmp_path / 'zone.yaml'
+    zone_path.write_text(SQUARE)
+    zone = load_zone_file(zone_path)
+    test_node.start_clock()
+    out = test_node.record(Twist, PARAMS['cmd_vel_out_topic'])
+    state = test_node.record(String, PARAMS['state_topic'])
+    diagnostics = test_node.record(DiagnosticArray, '/diagnostics')
+    system = start_system(str(write_launch(tmp_path, str(zone_path))))
+    system.wait_for_line(r'\[zone_guard\].*Zone guard started')
+    robot = Robot(test_node)
+    robot.start()
+    margin = PARAMS['margin_m']
+    try:
+        # No transform yet: stopped, and the state says why.
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP no pose: no transform map -> base_link')
+
+        # Far from the border: unchanged.
+        robot.pose = (2.0, 2.0, 0.3)
+        for command in [(0.3, 0.0, 0.0), (0.2, -0.4, 1.0), (-0.6, 0.0, -2.0)]:
+            assert expected(zone, robot.pose, command, margin)[1] == 1.0
+            robot.command = command
+            settle(out, state, command, 'ALLOW')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.OK, 'ALLOW')
+
+        # 0.5 m from the right border, driving at it: 0.25 m of travel left in 1 s.
+        robot.pose = (3.5, 2.0, 0.0)
+        robot.command = (0.5, 0.0, 0.0)
+        twist, scale = expected(zone, robot.pose, robot.command, margin)
+        assert scale == pytest.approx(0.5)
+        settle(out, state, twist, 'SCALE 0.50 (0.30 m from the border)')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.WARN, 'SCALE 0.50')
+        # Strafing along it, or backing away: unchanged.
+        for command in [(0.0, 0.4, 0.0), (-0.5, 0.0, 0.5)]:
+            robot.command = command
+            settle(out, state, command, 'ALLOW')
+
+        # amcl is unsure (sigma 0.05 m): the margin grows to 0.05 + 2 * 0.05 = 0.15 m.
+        robot.publish_sigma(0.05)
+        robot.command = (0.5, 0.0, 0.0)
+        twist, scale = expected(zone, robot.pose, robot.command,
+                                margin + PARAMS['covariance_factor'] * 0.05)
+        assert scale == pytest.approx(0.3)
+        settle(out, state, twist, 'SCALE 0.30')
+        robot.publish_sigma(0.0)
+
+        # At the margin: toward the border stops, away and along pass.
+        robot.pose = (4.0 - RADIUS_M - margin, 2.0, math.pi / 2)
+        robot.command = (0.0, -0.3, 0.0)       # facing north, strafing east
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP at the border')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.ERROR, 'STOP at the border')
+        for command in [(0.0, 0.3, 0.0), (0.3, 0.0, 0.0), (0.0, 0.0, 1.5)]:
+            robot.command = command
+            settle(out, state, command, 'ALLOW')
+
+        # The EKF goes quiet (amcl's future-dated map -> odom still comes): after
+        # pose_timeout_s (not before) the robot is stopped; a zero command passes.
+        robot.pose = (2.0, 2.0, 0.0)
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+        robot.ekf = False
+        time.sleep(0.1)
+        last_stamp_s = robot.last_ekf_stamp_s
+        out.wait_for_new(lambda m: np.all(twist_of(m) == 0.0))
+        assert test_node.clock_ns * 1e-9 - last_stamp_s >= PARAMS['pose_timeout_s']
+        settle(out, state, (0.0, 0.0, 0.0),
+               'STOP no pose: map -> base_link older than 0.5 s (localisation lost?)')
+        system.wait_for_line(r'\[WARN\].*map -> base_link is [0-9.]+ s old \(its oldest '
+                             r'link odom -> base_link\)')
+        robot.command = (0.0, 0.0, 0.0)
+        settle(out, state, (0.0, 0.0, 0.0), 'ALLOW zero command (no pose)')
+        # The EKF is back: commands pass again.
+        robot.ekf = True
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+
+        # A non-finite command stops.
+        robot.command = (math.nan, 0.0, 0.0)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP invalid command')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+def test_without_a_zone_every_command_passes(start_system, test_node, tmp_path):
+    test_node.start_clock()
+    out = test_node.record(Twist, PARAMS['cmd_vel_out_topic'])
+    state = test_node.record(String, PARAMS['state_topic'])
+    system = start_system(str(write_launch(tmp_path, '')))
+    system.wait_for_line(r'\[zone_guard\].*Zone guard started.*no zone declared')
+    robot = Robot(test_node)            # no /tf at all: no pose needed
+    robot.start()
+    try:
+        for command in [(0.3, 0.0, 0.0), (-5.0, 2.0, 3.0)]:
+            robot.command = command
+            settle(out, state, command, 'ALLOW no zone declared')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+@pytest.mark.parametrize('arguments, message', [
+    (['-p', 'horizon_s:=-1.0'], r'parameter horizon_s must be a finite number > 0'),
+    (['-p', 'margin_m:=0.6'], r'parameter max_margin_m \(0.5\) must be >= margin_m \(0.6\)'),
+    (['-p', 'pose_timeout_s:=0.0'], r'parameter pose_timeout_s must be a finite number > 0'),
+    (['-p', 'zone_file:=/nonexistent/zone.yaml'],
+     r'parameter zone_file: /nonexistent/zone.yaml: cannot read the zone file'),
+])
+def test_bad_parameters_stop_the_node_with_a_clear_message(ros_env, arguments, message):
+    result = subprocess.run(
+        ['./mecanum', 'run', 'mecanum_navigation', 'zone_guard', '--ros-args', *arguments],
+        env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
+    output = result.stdout + result.stderr
+    assert result.returncode == 2, output
+    assert 'Traceback' not in output
+    assert re.search(r'\[FATAL\].*' + message, output), output
