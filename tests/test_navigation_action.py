@@ -5,7 +5,8 @@ A light world on simulated time: map_server serving a 6 m x 4 m room written her
 wall segment, a closed box), robot_simulation's kinematic simulation_node obeying the
 navigator's cmd_vel_nav directly (odom -> base_link on /tf), and the navigator with
 config/nav2_params.yaml (odometry from the simulator's odom, an L-shaped authorised
-zone). The test node drives /clock, publishes map -> odom (x 1, y 1, yaw 0.3: the robot
+zone in a zone file, zone_file). The test node drives /clock, publishes map -> odom (x 1,
+y 1, yaw 0.3: the robot
 starts at map (1, 1, 0.3)) and base_link -> laser on /tf_static, and empty laser scans
 (+inf: nothing seen).
 """
@@ -25,6 +26,7 @@ from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_interfaces.action import NavigateToPose
 from mecanum_localization.transforms import PlanarTransform, wrap_angle
 from mecanum_navigation.map_io import OccupancyMap, save_map
+from mecanum_navigation.safety.zone import make_zone, zone_file_text
 from nav_msgs.msg import OccupancyGrid, Odometry, Path as PathMsg
 import numpy as np
 import pytest
@@ -45,7 +47,7 @@ ROBOT = load_robot_config(default_config_path())
 MAP_TO_ODOM = PlanarTransform(1.0, 1.0, 0.3)
 RES = 0.05
 # Everything but the top right corner (x > 4.5, y > 2.5), map frame.
-ZONE = [0.0, 0.0, 6.0, 0.0, 6.0, 2.5, 4.5, 2.5, 4.5, 4.0, 0.0, 4.0]
+ZONE = make_zone([(0.0, 0.0), (6.0, 0.0), (6.0, 2.5), (4.5, 2.5), (4.5, 4.0), (0.0, 4.0)])
 R = NavigateToPose.Result
 
 
@@ -73,9 +75,11 @@ def write_launch(directory: Path, map_yaml: Path) -> Path:
     The navigator's overrides go in a file of their own with a `navigator:` section,
     after nav2_params.yaml: rcl lets a node's own section win over `-p` (`/**`) values.
     """
+    zone_file = directory / 'zone.yaml'
+    zone_file.write_text(zone_file_text(ZONE))
     overrides = directory / 'navigator_overrides.yaml'
     overrides.write_text(yaml.safe_dump({'navigator': {'ros__parameters': {
-        'odom_topic': 'odom', 'authorised_zone': ZONE}}}))
+        'odom_topic': 'odom', 'zone_file': str(zone_file)}}}))
     launch = {'launch': [
         {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_server', 'name': 'map_server',
                   'param': [{'name': 'yaml_filename', 'value': str(map_yaml)},
@@ -126,7 +130,7 @@ class Scanner:
         threading.Thread(target=self._run, daemon=True).start()
 
     def ranges(self, angles):
-        """Return the ranges (m) to the circles along the beams (laser frame angles)."""
+        """Return the distance (m) to the circles along each beam (laser frame angles)."""
         ranges = np.full(angles.size, math.inf)
         if not self.circles or self.robot is None:
             return ranges
@@ -256,19 +260,35 @@ def navigation(start_system, test_node, tmp_path):
     navigation.odom.wait_for(lambda msg: True)
     scanner.robot = navigation.robot
     navigation.scanner = scanner
+    navigation.local_costmaps = local_costmaps
     yield system, navigation
     scanner.stop.set()
     del static
     print(system.output())   # shown by pytest when the test failed
 
 
-def test_bad_goals_are_refused_with_their_codes_and_the_robot_stays(navigation):
-    """Goal in a wall, outside the zone, off the map, unreachable, NaN, unknown frame."""
+def test_bad_goals_are_refused_and_the_zone_is_lethal_in_both_costmaps(navigation,
+                                                                     test_node):
+    """
+    Goal in a wall, outside the zone or at its border, off the map, unreachable, NaN, frame.
+
+    (4.4, 3.0) is 0.1 m from the zone's border x = 4.5: the footprint would cross it.
+    The robot stays. The zone file's zone is keepout in the global costmap (map) and
+    the local one (odom). Global: the cell at (5.3, 3.3), free on the map but in the
+    corner the zone leaves out, is lethal (100), as is the map's wall cell (3.02, 1.0);
+    (2.0, 2.0) is free (0). Local: the scans see nothing, so only the zone can make a
+    lethal cell. The window is 3 m wide round the robot at map (1, 1), and map -> odom
+    is (1, 1, 0.3): map (-0.3, 1.0), outside the zone (x < 0), is odom (-1.3 cos 0.3,
+    1.3 sin 0.3) = (-1.242, 0.384), inside the window, and lethal; map (1.5, 1.5), odom
+    (0.5 cos 0.3 + 0.5 sin 0.3, -0.5 sin 0.3 + 0.5 cos 0.3) = (0.626, 0.330), is free.
+    """
     system, nav = navigation
     start = nav.robot()
     cases = [
         ((3.02, 1.0, 0.0, 'map'), R.GOAL_IN_OBSTACLE, r'goal \(3.02, 1.00\) is in an obstacle'),
         ((5.3, 3.3, 0.0, 'map'), R.GOAL_OUTSIDE_ZONE, 'outside the authorised zone'),
+        ((4.4, 3.0, 0.0, 'map'), R.GOAL_OUTSIDE_ZONE,
+         r"goal \(4.40, 3.00\) is within 0.2 m of the authorised zone's border"),
         ((7.0, 1.0, 0.0, 'map'), R.GOAL_OUTSIDE_MAP,
          r'outside the map \(x 0.00..6.00, y 0.00..4.00 m\)'),
         ((5.0, 1.0, 0.0, 'map'), R.NO_VALID_PATH, 'no valid path to goal.*not reachable'),
@@ -286,6 +306,27 @@ def test_bad_goals_are_refused_with_their_codes_and_the_robot_stays(navigation):
     assert all(is_zero(msg) for msg in nav.commands.since(0.0))
     assert nav.robot() == pytest.approx(start, abs=1e-6)
     system.wait_for_line(r'\[navigator\].*goal ended: GOAL_OUTSIDE_ZONE')
+
+    system.wait_for_line(r'\[navigator\].*authorised zone: .*zone.yaml \(6 vertices, 0 '
+                         r'exclusion\(s\)\)')
+    system.wait_for_line(r'\[navigator\].*global costmap: 120 x 80 cells at 0.05 m from the '
+                         r'map, 0 keepout zone\(s\), outside the authorised zone lethal')
+    costmap = test_node.record(OccupancyGrid, 'global_costmap/costmap', latched=True) \
+        .wait_for(lambda msg: True)
+
+    def value(msg, x, y):
+        info = msg.info
+        col = math.floor((x - info.origin.position.x) / info.resolution)
+        row = math.floor((y - info.origin.position.y) / info.resolution)
+        assert 0 <= col < info.width and 0 <= row < info.height, (x, y)
+        return msg.data[row * info.width + col]
+
+    assert (value(costmap, 5.3, 3.3), value(costmap, 3.02, 1.0), value(costmap, 2.0, 2.0)) \
+        == (100, 100, 0)
+    # (A local costmap made before map -> odom was known has no zone yet.)
+    local = nav.local_costmaps.wait_for(
+        lambda msg: msg.header.frame_id == 'odom' and value(msg, -1.242, 0.384) == 100)
+    assert value(local, 0.626, 0.330) == 0
 
 
 def test_navigate_cancel_preempt_and_goal_pose(navigation, test_node):
@@ -385,16 +426,22 @@ def test_the_plan_goes_round_an_obstacle_the_map_lacks(navigation, test_node):
 
 
 def test_navigation_launch_file_describes_the_system():
-    """navigation.launch.yaml: navigator (robot + nav2 params), smoother, monitor."""
+    """
+    navigation.launch.yaml: navigator (robot + nav2 params, zone_file), smoother.
+
+    The collision monitor is the command chain's (command_chain.launch.yaml), not here.
+    """
     system = load_system(REPO / 'install/mecanum_navigation/share/mecanum_navigation/launch/'
-                         'navigation.launch.py', {'use_sim_time': 'true'})
+                         'navigation.launch.py', {'use_sim_time': 'true',
+                                                  'zone_file': '/tmp/zone.yaml'})
     nodes = {node.label: node for node in system.nodes}
-    assert set(nodes) == {'navigator', 'velocity_smoother', 'collision_monitor'}
+    assert set(nodes) == {'navigator', 'velocity_smoother'}
     navigator = nodes['navigator']
     files = [source.name for source in navigator.parameters if isinstance(source, Path)]
     assert files == ['motor_params.yaml', 'costmap_common.yaml', 'planner_params.yaml',
                      'nav2_params.yaml']
     assert ('use_sim_time', True) in navigator.parameters
+    assert ('zone_file', '/tmp/zone.yaml') in navigator.parameters
 
 
 @pytest.mark.parametrize('params, message', [
@@ -417,3 +464,19 @@ def test_bad_parameters_stop_the_navigator_with_a_clear_message(ros_env, tmp_pat
     assert result.returncode == 2, output
     assert 'Traceback' not in output
     assert re.search(r'\[FATAL\].*' + message, output), output
+
+
+def test_a_malformed_zone_file_stops_the_navigator_naming_the_file_and_key(ros_env, tmp_path):
+    """A zone polygon of two points: one FATAL line with the file and the key, exit 2."""
+    zone_file = tmp_path / 'zone.yaml'
+    zone_file.write_text('authorised_zone:\n  include: [[0, 0], [1, 1]]\n')
+    result = subprocess.run(
+        ['./mecanum', 'run', 'mecanum_navigation', 'navigator', '--ros-args',
+         '-p', f'zone_file:={zone_file}'],
+        env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
+    output = result.stdout + result.stderr
+    assert result.returncode == 2, output
+    assert 'Traceback' not in output
+    assert re.search(r'\[FATAL\].*parameter zone_file: ' + re.escape(str(zone_file))
+                     + r': authorised_zone.include: the polygon needs at least 3 points',
+                     output), output

@@ -173,12 +173,12 @@ def test_world_and_map_paths_are_relative_to_the_file(tmp_path):
 
 
 def test_a_zone_with_an_exclusion_reaches_the_world_and_the_judge(tmp_path):
-    text = MINIMAL + textwrap.indent(textwrap.dedent('''\
+    text = MINIMAL + textwrap.indent(textwrap.dedent("""\
         authorised_zone:
           include: [[0.1, 0.1], [9.9, 0.1], [9.9, 3.95], [0.1, 3.95]]
           exclude:
           - [[5.5, 2.5], [6.5, 2.5], [6.5, 3.9], [5.5, 3.9]]
-        '''), '  ')
+        """), '  ')
     scenario = load_scenario(write(tmp_path, text))
     zone = scenario.authorised_zone
     assert len(zone.exclude) == 1
@@ -197,14 +197,14 @@ def test_a_zone_with_an_exclusion_reaches_the_world_and_the_judge(tmp_path):
 
 def test_new_steps_and_command_expectations_load(tmp_path):
     scenario = load_scenario(write(tmp_path, MINIMAL.replace(
-        '  - goal: {x: 5.1, y: 6.2}\n', '''\
+        '  - goal: {x: 5.1, y: 6.2}\n', """\
   - cmd_vel: {vx: 0.3, duration_s: 2.0, source: teleop_keyboard}
   - freeze: {node: amcl, duration_s: 6.0}
   - command: 'forward 3 m'
     expect: stopped
   - command: 'strafe right 3 m'
     expect: rejected
-''')))
+""")))
     teleop, freeze, stopped, rejected = scenario.steps
     assert teleop == CmdVelStep(0.3, 0.0, 0.0, 2.0, 'teleop_keyboard', 'cmd_vel_teleop')
     assert freeze == FreezeStep('amcl', 6.0) and freeze.describe() == 'freeze amcl for 6.0 s'

@@ -5,6 +5,7 @@ from pathlib import Path
 from mecanum_bringup.scenario import load_scenario
 from mecanum_bringup.scenario_runner import RunOptions, write_run_files
 from mecanum_bringup.system_description import load_system
+from mecanum_navigation.safety.zone import load_zone_file
 import pytest
 import yaml
 
@@ -29,22 +30,27 @@ def test_a_scenario_runs_the_whole_robot_in_its_world_with_its_zone(tmp_path):
     system = load_system(launch, {})
     names = labels(system)
     for node in ('simulator', 'hardware_interface', 'ekf_filter_node', 'map_server', 'amcl',
-                 'navigator', 'velocity_smoother', 'collision_monitor', 'robot_controller'):
+                 'navigator', 'velocity_smoother', 'twist_mux', 'collision_monitor',
+                 'zone_guard', 'motor_controller', 'robot_controller'):
         assert names.count(node) == 1, (node, names)
     assert 'bag_recorder' not in names and 'foxglove_bridge' not in names
     # The world the simulator loads: the spawn and zone of the scenario.
     world = yaml.safe_load((tmp_path / 'world.yaml').read_text())['world']
     start = world['robot_start']
     assert (start['x_m'], start['y_m']) == pytest.approx(scenario.spawn[:2])
-    assert world['test_zone'] == [list(p) for p in scenario.authorised_zone]
+    assert world['test_zone'] == scenario.authorised_zone.to_document()
     simulator = system.nodes[names.index('simulator')]
     assert parameter(simulator, 'world') == str(tmp_path / 'world.yaml')
-    # The navigator gets the same zone, flattened as Nav2-style parameters are.
-    params = yaml.safe_load((tmp_path / 'nav2_params.yaml').read_text())
-    zone = params['navigator']['ros__parameters']['authorised_zone']
-    assert zone == [c for point in scenario.authorised_zone for c in point]
+    # The navigator, the zone guard and robot_controller get the same zone, in one file.
+    assert load_zone_file(tmp_path / 'zone.yaml') == scenario.authorised_zone
+    for node in ('navigator', 'zone_guard', 'robot_controller'):
+        assert parameter(system.nodes[names.index(node)], 'zone_file') == \
+            str(tmp_path / 'zone.yaml'), node
     navigator = system.nodes[names.index('navigator')]
     assert tmp_path / 'nav2_params.yaml' in navigator.parameters
+    # motor_controller takes only the chain's output.
+    motor = system.nodes[names.index('motor_controller')]
+    assert ('cmd_vel', 'cmd_vel_safe') in motor.remappings
     # amcl starts where the robot is, with a small spread.
     amcl = system.nodes[names.index('amcl')]
     assert parameter(amcl, 'initial_pose.x') == pytest.approx(scenario.initial_pose[0])

@@ -19,6 +19,9 @@ to its default value each cycle (LayeredCostmap does that), as Nav2's layered co
 - KeepoutLayer: polygons written LETHAL (Nav2's keepout filter; Nav2 applies filters
   after inflation, so put it last for that, or before InflationLayer to keep the whole
   footprint out);
+- ZoneLayer: the authorised zone as a geofence: every cell whose centre is outside it
+  (outside its inclusion polygon or inside an exclusion) written LETHAL, also into a
+  costmap in another frame (the local costmap in odom, given map -> odom);
 - InflationLayer: Nav2's exponential cost decay around LETHAL cells.
 
 RollingWindow keeps a costmap centred on the robot (the local costmap). Parameter
@@ -31,6 +34,7 @@ from typing import List, Optional, Sequence, Tuple
 
 from mecanum_navigation import grid_search
 from mecanum_navigation.map_io import OccupancyMap
+from mecanum_navigation.safety.zone import Zone
 import numpy as np
 
 FREE_SPACE = 0
@@ -288,6 +292,74 @@ class KeepoutLayer:
             inside = points_in_polygon(cx, cy, np.column_stack((gx, gy)))
             block = costmap.costs[r0:r1, c0:c1]
             block[inside] = LETHAL_OBSTACLE
+
+
+class ZoneLayer:
+    """
+    Writes everything outside an authorised zone as LETHAL_OBSTACLE (a geofence).
+
+    zone: a :class:`~mecanum_navigation.safety.zone.Zone` (an inclusion polygon and
+    exclusion polygons, concave allowed, in the zone's frame: map). Every cell whose
+    centre is outside the allowed region (outside the inclusion polygon or inside an
+    exclusion; the even-odd rule of Zone.contains) becomes LETHAL_OBSTACLE, as Nav2's
+    keepout filter does with its mask. Put it before InflationLayer: inflation then keeps
+    the whole footprint inside the zone as it keeps it off walls (to within the cells:
+    a lethal cell's centre is up to half a cell beyond the border).
+
+    frame_pose: the pose (x m, y m, yaw rad) of the costmap's frame in the zone's frame,
+    i.e. the transform taking costmap points into the zone's frame: (0, 0, 0) (the
+    default) for a costmap in the zone's frame (the global costmap), map -> odom for the
+    local costmap in odom. None: not known yet, update() writes nothing. set_frame_pose
+    changes it; the layer keeps the last pose it was given. The polygons are moved into
+    the costmap's frame once per pose, then tested row by row against the cell lattice
+    (vectorised; each edge touches only the rows it spans).
+    """
+
+    def __init__(self, zone: Zone,
+                 frame_pose: Optional[Tuple[float, float, float]] = (0.0, 0.0, 0.0)):
+        """Store the zone and the pose of the costmap's frame in the zone's frame."""
+        if not isinstance(zone, Zone):
+            raise ValueError(f'zone must be a Zone (mecanum_navigation.safety.zone), not '
+                             f'{type(zone).__name__}')
+        self.zone = zone
+        self.frame_pose: Optional[Tuple[float, float, float]] = None
+        self._polygons: List[np.ndarray] = []
+        if frame_pose is not None:
+            self.set_frame_pose(*frame_pose)
+
+    def set_frame_pose(self, x: float, y: float, yaw: float) -> None:
+        """Set the pose (m, m, rad) of the costmap's frame in the zone's frame."""
+        for name, value in (('x', x), ('y', y), ('yaw', yaw)):
+            _check_finite(name, value)
+        pose = (float(x), float(y), float(yaw))
+        if pose == self.frame_pose:
+            return
+        self.frame_pose = pose
+        # p_costmap = R(yaw)^T (p_zone - t); for row vectors that is (p_zone - t) R(yaw).
+        cos_yaw, sin_yaw = math.cos(pose[2]), math.sin(pose[2])
+        rotation = np.array([[cos_yaw, -sin_yaw], [sin_yaw, cos_yaw]])
+        self._polygons = [(polygon - pose[:2]) @ rotation for polygon in self.zone.polygons()]
+
+    def outside_mask(self, costmap: Costmap2D) -> Optional[np.ndarray]:
+        """Return a (size_y, size_x) bool array: cells whose centre is outside the zone."""
+        if self.frame_pose is None:
+            return None
+        xs = costmap.origin_x_m + (np.arange(costmap.size_x) + 0.5) * costmap.resolution_m
+        ys = costmap.origin_y_m + (np.arange(costmap.size_y) + 0.5) * costmap.resolution_m
+        include, *exclude = self._polygons
+        outside = ~_polygon_mask(xs, ys, include)
+        for polygon in exclude:
+            c0, c1 = np.searchsorted(xs, (polygon[:, 0].min(), polygon[:, 0].max()))
+            r0, r1 = np.searchsorted(ys, (polygon[:, 1].min(), polygon[:, 1].max()))
+            if c0 < c1 and r0 < r1:
+                outside[r0:r1, c0:c1] |= _polygon_mask(xs[c0:c1], ys[r0:r1], polygon)
+        return outside
+
+    def update(self, costmap: Costmap2D) -> None:
+        """Set the cells whose centres are outside the zone to LETHAL_OBSTACLE."""
+        outside = self.outside_mask(costmap)
+        if outside is not None:
+            costmap.costs[outside] = LETHAL_OBSTACLE
 
 
 class ObstacleLayer:
@@ -585,6 +657,27 @@ def points_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np
         crosses = (y1 > ys) != (y2 > ys)
         x_cross = x1 + (ys - y1) * (x2 - x1) / (y2 - y1)
         inside ^= crosses & (xs < x_cross)
+    return inside
+
+
+def _polygon_mask(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """
+    Return a (len(ys), len(xs)) bool array: which lattice points are inside polygon.
+
+    xs and ys are ascending; the rule is the even-odd one of points_in_polygon (a point
+    is inside when a ray towards +x crosses the border an odd number of times), with the
+    same arithmetic, but each edge only visits the rows it spans.
+    """
+    inside = np.zeros((ys.size, xs.size), dtype=bool)
+    x2, y2 = polygon[-1]
+    for x1, y1 in polygon:
+        if y1 != y2:
+            # The edge crosses row y when min(y1, y2) <= y < max(y1, y2).
+            r0, r1 = np.searchsorted(ys, (min(y1, y2), max(y1, y2)))
+            if r0 < r1:
+                x_cross = x1 + (ys[r0:r1] - y1) * (x2 - x1) / (y2 - y1)
+                inside[r0:r1] ^= xs[None, :] < x_cross[:, None]
+        x2, y2 = x1, y1
     return inside
 
 

@@ -16,11 +16,19 @@ default behaviour tree ("navigate w/ replanning and recovery"):
 - goal validation before moving, in this order: non-finite pose -> INVALID_GOAL (as
   does an ``invalid_reason`` given by the node, e.g. an unknown frame); no map yet ->
   UNKNOWN; no robot pose -> TF_ERROR; goal off the global costmap -> GOAL_OUTSIDE_MAP;
-  outside the ``authorised_zone`` polygon (map frame, even-odd rule; empty = no zone)
-  -> GOAL_OUTSIDE_ZONE; goal cell lethal (254, also keepout zones) or inscribed (253,
-  the footprint would touch an obstacle) on the map's costmap -> GOAL_IN_OBSTACLE; no
-  plan on the global costmap nor on the map's -> NO_VALID_PATH (the planner's reason,
-  e.g. unknown space or unreachable). The scan's obstacles (a person) steer plans but
+  outside the ``authorised_zone`` (a :class:`~mecanum_navigation.safety.zone.Zone`,
+  map frame; None = no zone), or so near its border that the footprint
+  (``robot_radius_m``) would cross it -> GOAL_OUTSIDE_ZONE; goal cell lethal (254,
+  also keepout zones) or inscribed (253, the footprint would touch an obstacle) on the
+  map's costmap -> GOAL_IN_OBSTACLE (GOAL_OUTSIDE_ZONE when only the zone makes it
+  so: a goal a few cm beyond the exact check, on the costmap's cells); no plan on the
+  global costmap nor on the map's -> NO_VALID_PATH (the planner's reason, e.g.
+  unknown space or unreachable), except that with a zone a plan is then tried once on
+  the map's costmap without the zone (TickInputs.unzoned_costmap): when that one
+  exists, the only route leaves the zone -> GOAL_OUTSIDE_ZONE (or NO_VALID_PATH when
+  the robot itself is outside the zone). The costmaps are the node's: with a zone,
+  everything outside it is lethal in both (ZoneLayer, before inflation), so no plan
+  or trajectory leaves it. The scan's obstacles (a person) steer plans but
   never fail a goal (see TickInputs.static_costmap). A robot whose own cell is
   blocked (>= 253, e.g. after being pushed against a wall) plans from the nearest free
   cell within 0.5 m, its own position prepended;
@@ -63,12 +71,12 @@ import math
 from typing import Callable, Hashable, List, Optional, Sequence, Tuple
 
 from mecanum_localization.transforms import PlanarTransform, wrap_angle
-from mecanum_navigation.costmap import (
-    Costmap2D, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, points_in_polygon)
+from mecanum_navigation.costmap import Costmap2D, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE
 from mecanum_navigation.local_controller import (
     LocalController, ProgressChecker, ramp_step, STATUS_GOAL_REACHED,
     STATUS_NO_VALID_TRAJECTORY, STATUS_STALE_POSE)
 from mecanum_navigation.planner import PlanningError
+from mecanum_navigation.safety.zone import Zone
 import numpy as np
 
 Pose2D = Tuple[float, float, float]
@@ -117,8 +125,10 @@ class NavigatorParams:
     """
     Parameters of the Navigator (Nav2 names where Nav2 has them; see nav2_params.yaml).
 
-    authorised_zone: polygon (x, y) vertices in the map frame, () for no zone;
-    robot_radius_m: the footprint radius (clearance kept by the back up); the spin turns
+    authorised_zone: the Zone (mecanum_navigation.safety.zone, map frame) goals must be
+    in, footprint and all, or None for no zone (the node loads it from zone_file);
+    robot_radius_m: the footprint radius (clearance kept from the zone's border by goals
+    and by the back up from obstacles); the spin turns
     by spin_dist rad at up to max_rotational_vel rad/s; the back up moves backup_dist m
     at up to backup_speed m/s; each recovery motion stops after time_allowance s.
     """
@@ -126,7 +136,7 @@ class NavigatorParams:
     replan_frequency: float = 1.0
     failure_tolerance: float = 0.3
     max_recoveries: int = 6
-    authorised_zone: Tuple[Point, ...] = ()
+    authorised_zone: Optional[Zone] = None
     robot_radius_m: float = 0.2
     spin_dist: float = 1.57
     max_rotational_vel: float = 1.0
@@ -136,7 +146,7 @@ class NavigatorParams:
     time_allowance: float = 10.0
 
     def __post_init__(self) -> None:
-        """Validate every field (ValueError naming it); store the zone as a tuple."""
+        """Validate every field (ValueError naming it)."""
         for name in ('replan_frequency', 'robot_radius_m', 'spin_dist', 'max_rotational_vel',
                      'backup_dist', 'backup_speed', 'wait_duration', 'time_allowance'):
             _check_number(name, getattr(self, name), minimum=0.0, inclusive=False)
@@ -145,31 +155,9 @@ class NavigatorParams:
                 or self.max_recoveries < 0):
             raise ValueError(f'max_recoveries must be an integer >= 0, got '
                              f'{self.max_recoveries!r}')
-        try:
-            zone = np.asarray(self.authorised_zone, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError('authorised_zone must be a list of (x, y) points, got '
-                             f'{self.authorised_zone!r}') from None
-        if zone.size and (zone.ndim != 2 or zone.shape[1] != 2 or zone.shape[0] < 3):
-            raise ValueError('authorised_zone must have at least 3 (x, y) points (or none), '
-                             f'got {self.authorised_zone!r}')
-        if not np.all(np.isfinite(zone)):
-            raise ValueError(f'authorised_zone has a non-finite coordinate: '
-                             f'{self.authorised_zone!r}')
-        object.__setattr__(self, 'authorised_zone',
-                           tuple((float(x), float(y)) for x, y in zone.reshape(-1, 2)))
-
-    @staticmethod
-    def zone_from_flat(name: str, values: Sequence[float]) -> Tuple[Point, ...]:
-        """Return the (x, y) points of a flat list x0, y0, x1, y1, ... (ValueError names it)."""
-        values = list(values or [])
-        if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
-            raise ValueError(f'{name} must be a list of numbers x0, y0, x1, y1, ... (m), '
-                             f'got {values!r}')
-        if len(values) % 2 or 0 < len(values) < 6:
-            raise ValueError(f'{name} must hold an even number (>= 6) of values x0, y0, x1, '
-                             f'y1, ... or none, got {len(values)}')
-        return tuple((float(values[i]), float(values[i + 1])) for i in range(0, len(values), 2))
+        if self.authorised_zone is not None and not isinstance(self.authorised_zone, Zone):
+            raise ValueError('authorised_zone must be a Zone (mecanum_navigation.safety.zone) '
+                             f'or None, got {self.authorised_zone!r}')
 
 
 @dataclass
@@ -186,7 +174,11 @@ class TickInputs:
     static_costmap: the global costmap without what the scan added (map, keepout,
     inflation; None: global_costmap is that). What the scan sees (a person) steers the
     plans but never fails a goal: goal checks, "path blocked" and the fallback plan
-    when the scan's obstacles leave no way use the static costmap.
+    when the scan's obstacles leave no way use the static costmap. unzoned_costmap:
+    the static costmap without the authorised zone's layer (map, keepout, inflation),
+    planned on only when a new goal has no plan with the zone, to tell a goal whose
+    only route leaves the zone (GOAL_OUTSIDE_ZONE) from an unreachable one (None: no
+    such check, NO_VALID_PATH).
     """
 
     now_s: float
@@ -199,6 +191,7 @@ class TickInputs:
     pose_error: str = ''
     obstacle_points: Optional[np.ndarray] = None
     static_costmap: Optional[Costmap2D] = None
+    unzoned_costmap: Optional[Costmap2D] = None
 
     @property
     def map_costmap(self) -> Optional[Costmap2D]:
@@ -436,10 +429,23 @@ class Navigator:
                                       f'{costmap.origin_y_m:.2f}..'
                                       f'{costmap.origin_y_m + costmap.size_y_m:.2f} m)'), None
         zone = self.params.authorised_zone
-        if zone and not bool(points_in_polygon(np.array([x]), np.array([y]),
-                                               np.asarray(zone))[0]):
-            return GOAL_OUTSIDE_ZONE, f'goal {where} is outside the authorised zone', None
+        radius = self.params.robot_radius_m
+        if zone is not None:
+            if not zone.contains_point(x, y):
+                return GOAL_OUTSIDE_ZONE, f'goal {where} is outside the authorised zone', None
+            clearance = float(zone.clearance(np.array([x]), np.array([y]))[0])
+            if clearance < radius:
+                return GOAL_OUTSIDE_ZONE, (
+                    f"goal {where} is within {radius:g} m of the authorised zone's border "
+                    f'({clearance:.2f} m): the footprint would cross it'), None
         cost = int(costmap.costs[cell])
+        unzoned = inputs.unzoned_costmap
+        if (zone is not None and cost >= INSCRIBED_INFLATED_OBSTACLE and unzoned is not None
+                and unzoned.same_geometry(costmap)
+                and int(unzoned.costs[cell]) < INSCRIBED_INFLATED_OBSTACLE):
+            return GOAL_OUTSIDE_ZONE, (
+                f"goal {where} is within {radius:g} m of the authorised zone's border on the "
+                "costmap's cells (a cell outside the zone): the footprint would cross it"), None
         if cost == LETHAL_OBSTACLE:
             return GOAL_IN_OBSTACLE, (f'goal {where} is in an obstacle or keepout zone '
                                       f'(lethal cell)'), None
@@ -449,8 +455,32 @@ class Navigator:
         try:
             points = self._plan_steered(inputs, (x, y))
         except PlanningError as error:
+            if zone is not None and unzoned is not None:
+                leaves = self._route_leaves_zone(inputs, (x, y))
+                if leaves:
+                    return leaves
             return NO_VALID_PATH, f'no valid path to goal {where}: {error}', None
         return NONE, '', points
+
+    def _route_leaves_zone(self, inputs: TickInputs, goal: Point):
+        """
+        Return (code, message, None) when a goal with no plan in the zone has one without it.
+
+        Called only once planning with the zone failed: one more plan, on the map's
+        costmap without the zone's layer. None when that fails too (the goal is simply
+        unreachable).
+        """
+        try:
+            self._plan(inputs.unzoned_costmap, inputs.robot_in_map, goal)
+        except PlanningError:
+            return None
+        where = f'({goal[0]:.2f}, {goal[1]:.2f})'
+        rx, ry = (float(v) for v in inputs.robot_in_map[:2])
+        if not self.params.authorised_zone.contains_point(rx, ry):
+            return NO_VALID_PATH, (f'no valid path to goal {where}: the robot ({rx:.2f}, '
+                                   f'{ry:.2f}) is outside the authorised zone'), None
+        return GOAL_OUTSIDE_ZONE, (f'no route to {where} inside the authorised zone (the only '
+                                   'route leaves it)'), None
 
     def _plan_steered(self, inputs: TickInputs, goal: Point) -> List[Point]:
         """Plan on the global costmap; where its scan obstacles leave no way, on the map's."""

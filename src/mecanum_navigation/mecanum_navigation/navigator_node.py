@@ -9,12 +9,13 @@ Action server ``navigate_to_pose`` (mecanum_interfaces/NavigateToPose: nav2_msgs
 this project's error codes). Subscribes ``goal_pose`` (geometry_msgs/PoseStamped, what
 RViz's "2D Goal Pose" sends: a navigation without an action client, its end is logged),
 ``map`` (nav_msgs/OccupancyGrid, transient local) for the global costmap (static layer,
-``keepout_zones``, an obstacle layer from the scan unless ``global_costmap.obstacle_layer``
-is false, inflation with the inscribed radius footprint_radius_m of motor_params.yaml;
-rebuilt at ``global_costmap.update_frequency``, so replanning goes round people and
-furniture the map lacks, as Nav2's default global costmap), ``scan``
-(sensor_msgs/LaserScan, sensor-data QoS) for both costmaps (the local one a rolling
-window in ``odom_frame`` with obstacle and inflation layers; the laser's pose from TF),
+``keepout_zones``, the authorised zone, an obstacle layer from the scan unless
+``global_costmap.obstacle_layer`` is false, inflation with the inscribed radius
+footprint_radius_m of motor_params.yaml; rebuilt at ``global_costmap.update_frequency``,
+so replanning goes round people and furniture the map lacks, as Nav2's default global
+costmap), ``scan`` (sensor_msgs/LaserScan, sensor-data QoS) for both costmaps (the local
+one a rolling window in ``odom_frame`` with obstacle, zone and inflation layers; the
+laser's pose from TF),
 ``odom_topic`` (nav_msgs/Odometry, default 'odometry/filtered': the body twist for the
 controller), ``/tf`` and ``/tf_static`` (map -> odom -> base_link).
 Publishes ``cmd_vel_nav`` (geometry_msgs/Twist in base_link: Nav2's controller output,
@@ -27,6 +28,15 @@ cost translation, latched, at ``global_costmap.publish_frequency``) and ``local_
 Parameters: see config/nav2_params.yaml (Nav2's names, grouped controller.*, planner.*,
 progress_checker.*, global_costmap.*, local_costmap.*), plus the robot parameters of
 motor_params.yaml. A bad value stops the node with one FATAL line naming the key.
+
+The authorised zone: ``zone_file`` (a standalone zone file, mecanum_navigation.safety.zone's
+format, e.g. zones/apartment.yaml; '' = no zone), read once at start (a malformed file
+stops the node naming the file and the key). Everything outside it, and inside its
+exclusions, is lethal in both costmaps before inflation (costmap.ZoneLayer, as Nav2's
+keepout filter), so no plan and no local trajectory leaves it; in the local costmap the
+zone is placed with the latest map -> odom on /tf (missing: the last placement is kept,
+with a throttled warning). Goals outside it, or whose only route leaves it, are refused
+with GOAL_OUTSIDE_ZONE.
 
 Concurrency: single-threaded. Goals are accepted by rclpy's executor and queued; the
 control-loop timer starts them, publishes their feedback and, once the navigator has an
@@ -55,12 +65,13 @@ from mecanum_localization.transforms import (
 from mecanum_navigation import navigator as nav
 from mecanum_navigation.costmap import (
     Costmap2D, InflationLayer, KeepoutLayer, LayeredCostmap, ObstacleLayer, RollingWindow,
-    StaticLayer)
+    StaticLayer, ZoneLayer)
 from mecanum_navigation.grid_messages import occupancy_grid, occupancy_map
 from mecanum_navigation.local_controller import ControllerParams, LocalController, \
     ProgressChecker
 from mecanum_navigation.map_io import OccupancyMap
 from mecanum_navigation.planner import GridPlanner
+from mecanum_navigation.safety.zone import load_zone_file, Zone, ZoneError
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 import numpy as np
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -116,8 +127,11 @@ class NavigatorNode(Node):
             ('replan_frequency', 1.0), ('failure_tolerance', 0.3), ('max_recoveries', 6),
             ('spin_dist', 1.57), ('max_rotational_vel', 1.0), ('backup_dist', 0.15),
             ('backup_speed', 0.1), ('wait_duration', 2.0), ('time_allowance', 10.0))}
-        zone = nav.NavigatorParams.zone_from_flat(
-            'parameter authorised_zone', self._declare('authorised_zone', [], list))
+        self.zone_file = self._declare('zone_file', '')
+        zone = self._load_zone(self.zone_file)
+        self.zone_layer = None if zone is None else ZoneLayer(zone)
+        # The local costmap's copy is placed with map -> odom once that is known.
+        self.local_zone_layer = None if zone is None else ZoneLayer(zone, frame_pose=None)
         navigator_params = _build('', nav.NavigatorParams, {
             **behaviour, 'authorised_zone': zone, 'robot_radius_m': config.footprint_radius_m})
         progress_checker = _build('progress_checker', ProgressChecker, {
@@ -171,8 +185,9 @@ class NavigatorNode(Node):
         _warm_up(planner, controller)
         self.tf_buffer = TransformBuffer()
         self.global_costmap: Optional[Costmap2D] = None
-        self.global_base: Optional[Costmap2D] = None   # static + keepout, not inflated
+        self.global_base: Optional[Costmap2D] = None   # static + keepout + zone, not inflated
         self.global_static: Optional[Costmap2D] = None  # the base, inflated
+        self.global_unzoned: Optional[Costmap2D] = None  # static + keepout, inflated
         self.pending_scans = deque(maxlen=MAX_PENDING_SCANS)
         self.odom_twist: Optional[nav.Twist2D] = None
         self.new_goals = deque()
@@ -210,6 +225,14 @@ class NavigatorNode(Node):
             f'replanning at {navigator_params.replan_frequency:g} Hz, footprint radius '
             f'{self.inscribed_radius_m:g} m, goals in {self.global_frame}, odometry from '
             f'{self.odom_sub.topic_name}, commands on {self.cmd_pub.topic_name}')
+        if zone is None:
+            zone_text = ('none (zone_file empty)' if not self.zone_file
+                         else f'none declared in {self.zone_file}')
+        else:
+            zone_text = (f'{self.zone_file} ({len(zone.include)} vertices, '
+                         f'{len(zone.exclude)} exclusion(s)): plans and trajectories stay in '
+                         'it')
+        self.get_logger().info(f'authorised zone: {zone_text}')
 
     # --- parameters ------------------------------------------------------------------
 
@@ -250,6 +273,16 @@ class NavigatorNode(Node):
         except ValueError as error:
             raise ValueError(f'parameter keepout_zones: {error}') from None
 
+    @staticmethod
+    def _load_zone(zone_file: str) -> Optional[Zone]:
+        """Load the zone file ('' = no zone); a malformed one raises naming file and key."""
+        if not zone_file:
+            return None
+        try:
+            return load_zone_file(zone_file)
+        except ZoneError as error:   # names the file and the key
+            raise ValueError(f'parameter zone_file: {error}') from None
+
     def _inflation(self, group: str) -> InflationLayer:
         """Read group.inflation_radius and cost_scaling_factor into an InflationLayer."""
         return _build(group, InflationLayer, {
@@ -267,7 +300,9 @@ class NavigatorNode(Node):
             key: self._declare(f'local_costmap.{key}', default) for key, default in
             (('obstacle_max_range', 2.5), ('obstacle_min_range', 0.0),
              ('raytrace_max_range', 3.0), ('raytrace_min_range', 0.0))})
-        layered = LayeredCostmap(window.costmap, [obstacles, self._inflation('local_costmap')])
+        zone = [] if self.local_zone_layer is None else [self.local_zone_layer]
+        layered = LayeredCostmap(window.costmap,
+                                 [obstacles, *zone, self._inflation('local_costmap')])
         return window, obstacles, layered
 
     # --- inputs ----------------------------------------------------------------------
@@ -287,20 +322,27 @@ class NavigatorNode(Node):
             return
         static = StaticLayer(occupancy, **self.static_options)
         LayeredCostmap(costmap, [static, self.keepout_layer]).update()
+        unzoned = None
+        if self.zone_layer is not None:
+            unzoned = costmap.copy()
+            self.global_inflation.update(unzoned)
+            self.zone_layer.update(costmap)
         self.global_base = costmap
         self.global_static = costmap.copy()
         self.global_inflation.update(self.global_static)
+        self.global_unzoned = unzoned
         self.global_scans.clear()
         self._update_global_costmap(-math.inf)
         self.last_global_publish_s = -math.inf
+        zone_text = '' if self.zone_layer is None else ', outside the authorised zone lethal'
         self.get_logger().info(
             f'global costmap: {costmap.size_x} x {costmap.size_y} cells at '
             f'{costmap.resolution_m:g} m from the map, {len(self.keepout_layer.polygons)} '
-            'keepout zone(s)')
+            f'keepout zone(s){zone_text}')
 
     def _update_global_costmap(self, now_s: float) -> None:
         """
-        Rebuild the global costmap: static + keepout, recent scans' obstacles, inflation.
+        Rebuild the global costmap: static + keepout + zone, recent scans, inflation.
 
         Only the scans of the last observation_persistence seconds mark (Nav2's
         observation persistence, applied to a layer rebuilt each time): a person who
@@ -441,6 +483,7 @@ class NavigatorNode(Node):
         if robot_in_odom is not None and \
                 now_s - self.last_local_update_s >= self.local_update_period_s - 1e-9:
             self.local_window.move_to(robot_in_odom.x, robot_in_odom.y)
+            self._place_local_zone()
             self.local_costmap.update()
             self.last_local_update_s = now_s
         if self.last_local_update_s > -math.inf and \
@@ -464,7 +507,25 @@ class NavigatorNode(Node):
             local_costmap=self.local_costmap.costmap, global_costmap=self.global_costmap,
             static_costmap=self.global_static,
             twist=self.odom_twist, pose_age_s=0.0 if fresh else 2.0 * self.transform_tolerance,
-            pose_error=error, obstacle_points=self.obstacle_layer.latest_points)
+            pose_error=error, obstacle_points=self.obstacle_layer.latest_points,
+            unzoned_costmap=self.global_unzoned)
+
+    def _place_local_zone(self) -> None:
+        """Place the zone in the local costmap (odom) with the latest map -> odom."""
+        layer = self.local_zone_layer
+        if layer is None:
+            return
+        try:
+            odom_in_map = self.tf_buffer.lookup(self.global_frame, self.odom_frame)
+        except TransformError as error:
+            kept = ('keeps its last placement' if layer.frame_pose is not None
+                    else 'is not in it yet')
+            self.get_logger().warning(
+                f'local costmap: no {self.global_frame} -> {self.odom_frame} transform '
+                f'({error}); the authorised zone {kept}',
+                throttle_duration_sec=WARNING_PERIOD_S)
+            return
+        layer.set_frame_pose(odom_in_map.x, odom_in_map.y, odom_in_map.yaw)
 
     # --- the control loop ----------------------------------------------------------
 

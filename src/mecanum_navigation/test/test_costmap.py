@@ -5,8 +5,9 @@ import math
 from mecanum_navigation.costmap import (
     COST_TRANSLATION_TABLE, Costmap2D, FREE_SPACE, InflationLayer, INSCRIBED_INFLATED_OBSTACLE,
     KeepoutLayer, LayeredCostmap, LETHAL_OBSTACLE, NO_INFORMATION, ObstacleLayer,
-    RollingWindow, StaticLayer)
+    RollingWindow, StaticLayer, ZoneLayer)
 from mecanum_navigation.map_io import OccupancyMap
+from mecanum_navigation.safety.zone import make_zone
 import numpy as np
 import pytest
 
@@ -254,6 +255,123 @@ def test_keepout_polygon_partly_outside_and_concave():
 def test_keepout_rejects_bad_polygons(polygons):
     with pytest.raises(ValueError, match=r'polygons\[0\]'):
         KeepoutLayer(polygons)
+
+
+# --- Zone layer (the authorised zone as a geofence) -----------------------------------
+
+# An L-shaped (concave) zone on a 6 x 5 grid of 1 m cells (centres x 0.5..5.5, y
+# 0.5..4.5): the bar y 0.2..2.2 over the whole width, the upright x 0.2..2.2 up to y 4.8,
+# and a triangular exclusion (2.8, 0.8), (4.9, 0.8), (2.8, 1.9) in the bar.
+L_ZONE = make_zone([(0.2, 0.2), (5.8, 0.2), (5.8, 2.2), (2.2, 2.2), (2.2, 4.8), (0.2, 4.8)],
+                   [[(2.8, 0.8), (4.9, 0.8), (2.8, 1.9)]])
+
+
+def test_zone_layer_l_shape_with_an_exclusion_by_hand():
+    """
+    Exactly the cells whose centres are outside the L, or inside the triangle, are lethal.
+
+    Rows 2..4 (y 2.5..4.5) are above the bar: only columns 0, 1 (x 0.5, 1.5 < 2.2) are in
+    the upright. In the bar, of the centres at y 1.5 the triangle holds those with x
+    between 2.8 and its hypotenuse, x = 4.9 - (1.5 - 0.8) * 2.1 / 1.1 = 3.564: only
+    (3.5, 1.5), i.e. row 1, column 3. At y 0.5 (below 0.8) none.
+    """
+    costmap = Costmap2D(6, 5, 1.0)
+    costmap.costs[0, 0] = 7          # a cost inside the zone is left alone
+    ZoneLayer(L_ZONE).update(costmap)
+    L, F = LETHAL, FREE_SPACE
+    expected = np.array([[7, F, F, F, F, F],
+                         [F, F, F, L, F, F],
+                         [F, F, L, L, L, L],
+                         [F, F, L, L, L, L],
+                         [F, F, L, L, L, L]], dtype=np.uint8)
+    assert np.array_equal(costmap.costs, expected)
+    # Whatever was there before, a cell outside the zone ends lethal.
+    costmap.costs[4, 5] = NO_INFORMATION
+    ZoneLayer(L_ZONE).update(costmap)
+    assert costmap.costs[4, 5] == LETHAL
+
+
+def test_zone_layer_agrees_with_zone_contains_on_a_fine_grid():
+    """Cell by cell, lethal == not Zone.contains(cell centre) (200 x 160 cells, 2.5 cm)."""
+    costmap = Costmap2D(200, 160, 0.025, origin_x_m=0.1, origin_y_m=0.05)
+    ZoneLayer(L_ZONE).update(costmap)
+    xs, ys = costmap.cell_centers()
+    assert np.array_equal(costmap.costs == LETHAL, ~L_ZONE.contains(xs, ys))
+
+
+def test_zone_layer_before_inflation_keeps_the_footprint_inside():
+    """
+    A border at x = 0.62 on 0.1 m cells: centres 0.65.. lethal, then Nav2's law.
+
+    Inscribed radius 0.2 m, inflation 0.5 m, scaling 4: the centres 0.55 and 0.45 (0.1
+    and 0.2 m from the lethal centre 0.65) are inscribed (253); 0.35 (0.3 m) gets
+    floor(252 exp(-0.4)) = 168, 0.25 floor(252 exp(-0.8)) = 113, 0.15 floor(252
+    exp(-1.2)) = 75, 0.05 (0.6 m) nothing. The first usable centre, 0.35, is 0.27 m from
+    the border: the 0.2 m footprint stays inside.
+    """
+    zone = make_zone([(-1.0, -1.0), (0.62, -1.0), (0.62, 1.0), (-1.0, 1.0)])
+    costmap = Costmap2D(10, 3, 0.1)
+    layered = LayeredCostmap(costmap, [ZoneLayer(zone), InflationLayer(0.2, 0.5, 4.0)])
+    layered.update()
+    row = [0, 75, 113, 168, INSCRIBED, INSCRIBED, LETHAL, LETHAL, LETHAL, LETHAL]
+    assert costmap.costs.tolist() == [row] * 3
+    assert zone.clearance([0.35], [0.0])[0] == pytest.approx(0.27)
+
+
+def test_zone_layer_in_the_odom_frame_by_hand():
+    """
+    The local costmap in odom; odom's pose in map (map -> odom) is (2, 1, pi/2).
+
+    An odom point (u, v) is at map (2 - v, 1 + u). The 4 x 4 grid of 0.5 m cells from
+    odom (-1, -1) has centres u, v in -0.75, -0.25, 0.25, 0.75. The zone, map x 0..2.5,
+    y 0..1.5: map x < 2.5 needs v > -0.5 (row 0, v -0.75, is out); map y < 1.5 needs
+    u < 0.5 (column 3, u 0.75, is out). The exclusion, map x 1.5..2.0, y 0.5..1.0, holds
+    map (1.75, 0.75) = odom (-0.25, 0.25): row 2, column 1.
+    """
+    zone = make_zone([(0.0, 0.0), (2.5, 0.0), (2.5, 1.5), (0.0, 1.5)],
+                     [[(1.5, 0.5), (2.0, 0.5), (2.0, 1.0), (1.5, 1.0)]])
+    costmap = Costmap2D(4, 4, 0.5, origin_x_m=-1.0, origin_y_m=-1.0)
+    layer = ZoneLayer(zone, frame_pose=None)
+    layer.update(costmap)                  # map -> odom not known yet: nothing written
+    assert np.all(costmap.costs == FREE_SPACE)
+    assert layer.outside_mask(costmap) is None
+    layer.set_frame_pose(2.0, 1.0, math.pi / 2)
+    layer.update(costmap)
+    L, F = LETHAL, FREE_SPACE
+    assert costmap.costs.tolist() == [[L, L, L, L],
+                                      [F, F, F, L],
+                                      [F, L, F, L],
+                                      [F, F, F, L]]
+    # The layer keeps its last pose: a rolled window is masked with it.
+    costmap.update_origin(-0.5, -1.0)
+    costmap.reset()
+    layer.update(costmap)
+    assert costmap.costs.tolist() == [[L, L, L, L],
+                                      [F, F, L, L],
+                                      [L, F, L, L],
+                                      [F, F, L, L]]
+
+
+def test_zone_layer_in_a_rotated_frame_matches_transformed_centres():
+    """Any pose: lethal == not contains(cell centre moved into map by the pose)."""
+    x, y, yaw = 1.3, -0.7, 0.4
+    costmap = Costmap2D(120, 120, 0.025, origin_x_m=1.0, origin_y_m=2.0)
+    ZoneLayer(L_ZONE, frame_pose=(x, y, yaw)).update(costmap)
+    us, vs = costmap.cell_centers()
+    in_map_x = x + math.cos(yaw) * us - math.sin(yaw) * vs
+    in_map_y = y + math.sin(yaw) * us + math.cos(yaw) * vs
+    outside = ~L_ZONE.contains(in_map_x, in_map_y)
+    assert 0 < outside.sum() < outside.size
+    assert np.array_equal(costmap.costs == LETHAL, outside)
+
+
+def test_zone_layer_checks_its_inputs():
+    with pytest.raises(ValueError, match='zone must be a Zone'):
+        ZoneLayer([(0, 0), (1, 0), (1, 1)])
+    layer = ZoneLayer(L_ZONE)
+    with pytest.raises(ValueError, match='yaw must be finite'):
+        layer.set_frame_pose(0.0, 0.0, math.nan)
+    assert layer.frame_pose == (0.0, 0.0, 0.0)
 
 
 # --- Obstacle layer ------------------------------------------------------------------

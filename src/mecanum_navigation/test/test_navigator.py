@@ -9,15 +9,17 @@ from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_localization.transforms import PlanarTransform, wrap_angle
 from mecanum_navigation import navigator as nav
 from mecanum_navigation.costmap import (
-    Costmap2D, InflationLayer, LayeredCostmap, LETHAL_OBSTACLE, RollingWindow, StaticLayer)
+    Costmap2D, InflationLayer, LayeredCostmap, LETHAL_OBSTACLE, RollingWindow, StaticLayer,
+    ZoneLayer)
 from mecanum_navigation.local_controller import (
     ControllerParams, LocalController, ProgressChecker, STATUS_NO_VALID_TRAJECTORY)
-from mecanum_navigation.map_io import OccupancyMap
+from mecanum_navigation.map_io import find_map_file, load_map, OccupancyMap
 from mecanum_navigation.navigator import (
     backup_clear, backup_direction, estimated_time_remaining, lethal_points,
     map_to_odom_transform, Navigator, NavigatorParams, Outcome, path_blocked,
     project_onto_path, TickInputs, transform_points, ZERO_TWIST)
 from mecanum_navigation.planner import GridPlanner, PlanningError
+from mecanum_navigation.safety.zone import make_zone
 import numpy as np
 import pytest
 import yaml
@@ -63,7 +65,7 @@ WALL = (2.0, 0.0, 2.04, 1.8)
 BOX = [(3.0, 1.5, 3.04, 2.3), (3.76, 1.5, 3.8, 2.3), (3.0, 1.5, 3.8, 1.54),
        (3.0, 2.26, 3.8, 2.3)]
 ROOM = global_costmap(occupancy(4.0, 3.0, [WALL] + BOX))
-ZONE = ((0.0, 0.0), (3.9, 0.0), (3.9, 2.5), (0.0, 2.5))
+ZONE = make_zone([(0.0, 0.0), (3.9, 0.0), (3.9, 2.5), (0.0, 2.5)])
 
 
 class BoxedInController(LocalController):
@@ -100,9 +102,10 @@ class World:
 
     def __init__(self, costmap=ROOM, start_in_map=(0.5, 0.5, 0.0),
                  map_to_odom=(0.7, -0.4, 0.5), params=NavigatorParams(), controller=None,
-                 checker=None):
+                 checker=None, local_layers=None):
         self.global_costmap = costmap
         self.static_costmap = None   # the map's costmap, when the global one has more
+        self.unzoned_costmap = None  # the map's costmap without the zone, when it has one
         self.map_to_odom = PlanarTransform(*map_to_odom)
         odom = self.map_to_odom.inverse().compose(PlanarTransform(*start_in_map))
         self.odom_pose = (odom.x, odom.y, odom.yaw)
@@ -111,6 +114,9 @@ class World:
         self.window = RollingWindow(3.0, 3.0, RES)
         self.inflation = InflationLayer(ROBOT.footprint_radius_m, 0.5, 4.0)
         self.obstacles = np.zeros((0, 2))
+        # Layers (in odom) building the local costmap instead of the lethal cells above.
+        self.local_layers = None if local_layers is None else LayeredCostmap(
+            self.window.costmap, local_layers)
         self.clear_on_request = False
         self.move = True
         self.navigator = Navigator(params, controller or LocalController(PARAMS), plan_points,
@@ -130,6 +136,8 @@ class World:
     def local_costmap(self):
         """Return the local costmap around the robot with the walls and obstacles, inflated."""
         self.window.move_to(self.odom_pose[0], self.odom_pose[1])
+        if self.local_layers is not None:
+            return self.local_layers.update()
         costmap = self.window.costmap
         costmap.reset()
         walls = np.zeros((0, 2)) if self.global_costmap is None else transform_points(
@@ -145,7 +153,8 @@ class World:
         """Run one navigator tick and move the robot by its command; return the output."""
         out = self.navigator.tick(TickInputs(
             self.now, self.map_pose, self.odom_pose, self.local_costmap(),
-            self.global_costmap, self.twist, static_costmap=self.static_costmap))
+            self.global_costmap, self.twist, static_costmap=self.static_costmap,
+            unzoned_costmap=self.unzoned_costmap))
         if out.clear_local_costmap and self.clear_on_request:
             self.obstacles = np.zeros((0, 2))
         if out.twist is not None:
@@ -184,23 +193,18 @@ def ring(center, inner_m, outer_m):
 @pytest.mark.parametrize('field, value', [
     ('replan_frequency', 0.0), ('failure_tolerance', -0.1), ('max_recoveries', -1),
     ('max_recoveries', 2.0), ('robot_radius_m', math.nan), ('spin_dist', 0.0),
-    ('backup_speed', math.inf), ('wait_duration', -1.0), ('authorised_zone', ((0, 0), (1, 1))),
-    ('authorised_zone', ((0, 0), (1, 0), (1, math.nan)))])
+    ('backup_speed', math.inf), ('wait_duration', -1.0),
+    ('authorised_zone', ((0, 0), (1, 0), (1, 1))), ('authorised_zone', [0, 0, 1, 0, 1, 1])])
 def test_params_reject_bad_values_naming_the_field(field, value):
-    """Each bad value raises ValueError naming its field."""
+    """Each bad value raises ValueError naming its field (the zone must be a Zone)."""
     with pytest.raises(ValueError, match=field):
         NavigatorParams(**{field: value})
 
 
-def test_zone_from_flat_pairs_the_values():
-    """x0, y0, x1, y1, x2, y2 -> three points; odd or too short lists are refused."""
-    assert NavigatorParams.zone_from_flat('zone', [0, 0, 2.0, 0, 2, 1]) == (
-        (0.0, 0.0), (2.0, 0.0), (2.0, 1.0))
-    assert NavigatorParams.zone_from_flat('zone', []) == ()
-    with pytest.raises(ValueError, match='zone must hold an even number'):
-        NavigatorParams.zone_from_flat('zone', [0, 0, 1, 1])
-    with pytest.raises(ValueError, match='zone must be a list of numbers'):
-        NavigatorParams.zone_from_flat('zone', [0, 0, 1, 1, 'a', 2])
+def test_params_take_a_zone_or_none():
+    """No zone by default; a Zone is kept as it is."""
+    assert NavigatorParams().authorised_zone is None
+    assert NavigatorParams(authorised_zone=ZONE).authorised_zone is ZONE
 
 
 def test_result_codes_are_those_of_the_action():
@@ -359,6 +363,205 @@ def test_missing_inputs_and_invalid_reasons_fail_the_goal():
     world.navigator.submit('c', (1.0, 1.0, 0.0), invalid_reason="unknown frame 'nowhere'")
     assert [(o.code, o.message) for o in world.tick().outcomes] == [
         (nav.INVALID_GOAL, "unknown frame 'nowhere'")]
+
+
+# --- the authorised zone ----------------------------------------------------------------
+
+APARTMENT = load_map(find_map_file('apartment'))
+# The apartment (robot_simulation/worlds/apartment.yaml) without the bedroom: an L-shaped
+# (concave) inclusion whose top edge, y 5.15, is the hallway's north wall (inner face)
+# except over the bathroom (x >= 6.55), less two exclusions. The first is the doorway
+# joining the living room and the kitchen (x 5.5..6.5, y 2.5..3.95, round the opening
+# y 2.8..3.8 in the wall x = 6.0): the short way between them; the way round is the
+# hallway (living room door x 1.0..2.0, kitchen door x 8.0..9.0, both in the wall
+# y = 4.0). The second covers the bathroom's door (x 6.9..8.0, y 5.1..5.4, round the
+# opening x 7.0..7.9 in the wall y = 5.2), the bathroom's only way in.
+APARTMENT_ZONE = make_zone(
+    [(0.1, 0.1), (9.9, 0.1), (9.9, 7.9), (6.55, 7.9), (6.55, 5.15), (0.1, 5.15)],
+    [[(5.5, 2.5), (6.5, 2.5), (6.5, 3.95), (5.5, 3.95)],
+     [(6.9, 5.1), (8.0, 5.1), (8.0, 5.4), (6.9, 5.4)]])
+LIVING_ROOM = (4.5, 2.5, 0.0)
+KITCHEN = (8.5, 3.2, 0.0)
+MAP_TO_ODOM = (0.7, -0.4, 0.5)
+
+
+def zoned_costmap(occupancy_map, zone):
+    """Return the node's global costmap with a zone: static, zone, inflation (r 0.2 m)."""
+    costmap = Costmap2D.like_map(occupancy_map)
+    LayeredCostmap(costmap, [StaticLayer(occupancy_map), ZoneLayer(zone), InflationLayer(
+        ROBOT.footprint_radius_m, 0.5, 4.0)]).update()
+    return costmap
+
+
+APARTMENT_ZONED = zoned_costmap(APARTMENT, APARTMENT_ZONE)
+APARTMENT_UNZONED = global_costmap(APARTMENT)
+
+
+def apartment_world(zone=APARTMENT_ZONE, start=LIVING_ROOM, unzoned=True):
+    """
+    Return a World on the apartment's map, with the zone as the node has it.
+
+    The global costmap has the zone's layer, unzoned_costmap is the map's without it
+    (unzoned False: left out), and the local costmap (odom, 3 m window) is built as the
+    node builds it: the map placed in odom, the zone placed with map -> odom, inflation.
+    zone None: no zone at all.
+    """
+    map_to_odom = PlanarTransform(*MAP_TO_ODOM)
+    origin = map_to_odom.inverse().compose(PlanarTransform(*APARTMENT.origin))
+    in_odom = OccupancyMap(APARTMENT.resolution_m, (origin.x, origin.y, origin.yaw),
+                           APARTMENT.data)
+    layers = [StaticLayer(in_odom)]
+    if zone is not None:
+        layers.append(ZoneLayer(zone, frame_pose=MAP_TO_ODOM))
+    layers.append(InflationLayer(ROBOT.footprint_radius_m, 0.5, 4.0))
+    world = World(APARTMENT_ZONED if zone is not None else APARTMENT_UNZONED,
+                  start_in_map=start, map_to_odom=MAP_TO_ODOM,
+                  params=NavigatorParams(authorised_zone=zone), local_layers=layers)
+    if zone is not None and unzoned:
+        world.unzoned_costmap = APARTMENT_UNZONED
+    return world
+
+
+def path_length(points):
+    """Return the length (m) of a polyline."""
+    return sum(math.dist(a, b) for a, b in zip(points, points[1:]))
+
+
+def test_the_plan_goes_round_the_excluded_doorway_and_stays_in_the_zone():
+    """
+    Living room (4.5, 2.5) -> kitchen (8.5, 3.2), with and without the zone.
+
+    Without it the plan takes the doorway: the robot's centre crosses the wall x = 6.0
+    at y 3.0..3.6 (0.2 m inside the opening), so the plan is at least |(4.5, 2.5) -
+    (6.0, 3.0)| + |(6.0, 3.0) - (8.5, 3.2)| = 1.58 + 2.51 = 4.09 m; through the
+    doorway's middle it is about that, well under 5 m, and it enters the exclusion.
+    With the zone it must take the hallway: out of the living room's door with its
+    centre at x <= 1.8, into the kitchen's at x >= 8.2, so at least |(4.5, 2.5) -
+    (1.8, 4.0)| + (8.2 - 1.8) + |(8.2, 4.0) - (8.5, 3.2)| = 3.09 + 6.4 + 0.85 = 10.34 m.
+    Every point of it keeps the footprint (0.2 m) inside the zone.
+    """
+    free = apartment_world(zone=None)
+    free.navigator.submit('g', KITCHEN)
+    short = np.array(free.tick().new_plan)
+    assert path_length(short) < 5.0
+    assert not np.all(APARTMENT_ZONE.contains(short[:, 0], short[:, 1]))
+
+    world = apartment_world()
+    world.navigator.submit('g', KITCHEN)
+    out = world.tick()
+    assert out.outcomes == []
+    plan = np.array(out.new_plan)
+    assert plan[0] == pytest.approx(LIVING_ROOM[:2]) and plan[-1] == pytest.approx(KITCHEN[:2])
+    assert path_length(plan) > 10.3
+    assert np.max(plan[:, 1]) > 4.05          # in the hallway
+    assert np.all(APARTMENT_ZONE.clearance(plan[:, 0], plan[:, 1]) >= ROBOT.footprint_radius_m)
+
+
+def test_the_robot_drives_round_through_the_hallway_inside_the_zone():
+    """
+    Closed loop to the kitchen: the goal is reached, the footprint never leaves the zone.
+
+    The local costmap (odom) has the zone placed with map -> odom, like the node's, so
+    the controller's trajectories respect it too; the footprint keeps 0.2 m from the
+    border less half a cell's diagonal (0.036 m: the zone's cells and the two lattices).
+    """
+    world = apartment_world()
+    world.navigator.submit('g', KITCHEN)
+    outputs, clearances = [], []
+    while world.navigator.active_goal_id is not None or not outputs:
+        assert world.now < 60.0
+        outputs.append(world.tick())
+        x, y, _ = world.map_pose
+        clearances.append(APARTMENT_ZONE.clearance([x], [y])[0])
+    assert outcomes(outputs) == [Outcome('g', nav.NONE, 'goal reached')]
+    assert min(clearances) >= ROBOT.footprint_radius_m - 0.036
+    assert math.dist(world.map_pose[:2], KITCHEN[:2]) <= PARAMS.xy_goal_tolerance + 0.01
+
+
+@pytest.mark.parametrize('goal, message', [
+    # The doorway, in the exclusion; the bedroom, outside the L.
+    ((6.0, 3.3, 0.0), r'goal \(6.00, 3.30\) is outside the authorised zone$'),
+    ((3.5, 6.3, 0.0), r'goal \(3.50, 6.30\) is outside the authorised zone$'),
+    # 0.15 m west of the exclusion's edge x = 5.5: the footprint would cross it.
+    ((5.35, 3.0, 0.0),
+     r"goal \(5.35, 3.00\) is within 0.2 m of the authorised zone's border \(0.15 m\)"),
+    # The bathroom, in the zone, is entered only through its door, in an exclusion.
+    ((8.0, 6.5, 0.0), re.escape('no route to (8.00, 6.50) inside the authorised zone (the '
+                                'only route leaves it)')),
+])
+def test_goals_outside_the_zone_or_reached_only_through_its_outside_are_refused(goal, message):
+    """Each ends at once with GOAL_OUTSIDE_ZONE and its reason; the robot gets zero."""
+    world = apartment_world()
+    world.navigator.submit('g', goal)
+    out = world.tick()
+    assert [(o.goal_id, o.code) for o in out.outcomes] == [('g', nav.GOAL_OUTSIDE_ZONE)]
+    assert re.search(message, out.outcomes[0].message), out.outcomes[0].message
+    assert out.twist == ZERO_TWIST and out.new_plan is None
+    assert world.navigator.state == nav.IDLE
+
+
+def test_a_goal_a_footprint_from_the_border_is_accepted():
+    """(5.25, 3.0) is 0.25 m from the exclusion (x 5.5): planned to, ending there."""
+    world = apartment_world()
+    world.navigator.submit('g', (5.25, 3.0, 0.0))
+    out = world.tick()
+    assert out.outcomes == []
+    assert out.new_plan[-1] == pytest.approx((5.25, 3.0))
+
+
+def test_without_the_unzoned_costmap_or_with_the_robot_outside_it_is_no_valid_path():
+    """
+    The 'only route leaves it' check needs the costmap without the zone, and the robot in.
+
+    Without that costmap the bathroom goal is simply unreachable. With the robot in the
+    excluded doorway ((6.0, 3.3): 0.5 m from the exclusion's sides, so no free cell
+    within 0.5 m to start from) the plan fails because of the robot, which the message
+    says.
+    """
+    world = apartment_world(unzoned=False)
+    world.navigator.submit('g', (8.0, 6.5, 0.0))
+    (outcome,) = world.tick().outcomes
+    assert outcome.code == nav.NO_VALID_PATH
+    assert outcome.message.startswith('no valid path to goal (8.00, 6.50): no path')
+    world = apartment_world(start=(6.0, 3.3, 0.0))
+    world.navigator.submit('g', KITCHEN)
+    (outcome,) = world.tick().outcomes
+    assert (outcome.code, outcome.message) == (
+        nav.NO_VALID_PATH,
+        'no valid path to goal (8.50, 3.20): the robot (6.00, 3.30) is outside the authorised '
+        'zone')
+
+
+def test_zone_goal_checks_on_the_costmaps_cells_and_an_unreachable_goal():
+    """
+    The small room with zones; the node's costmaps (zone layer, then inflation).
+
+    Zone x <= 3.52: the cells from x 3.50 (centre 3.525) are outside, lethal. The goal
+    (3.31, 0.8) is 0.21 m from the border, but its cell's centre 3.325 is 0.2 m from the
+    lethal centre 3.525: inscribed, on the costmap's cells because of the zone (without
+    it the nearest obstacle is the floor wall 0.8 m away), so GOAL_OUTSIDE_ZONE. The goal
+    (3.26, 0.8), cell centre 3.275, 0.25 m away, is accepted. With the zone x <= 3.9,
+    the inside of the closed box (3.4, 1.9) has no plan with or without the zone:
+    NO_VALID_PATH.
+    """
+    room = occupancy(4.0, 3.0, [WALL] + BOX)
+    narrow = make_zone([(0.0, 0.0), (3.52, 0.0), (3.52, 3.0), (0.0, 3.0)])
+    cases = [(narrow, (3.31, 0.8, 0.0), nav.GOAL_OUTSIDE_ZONE,
+              r"goal \(3.31, 0.80\) is within 0.2 m of the authorised zone's border on the "
+              r"costmap's cells"),
+             (narrow, (3.26, 0.8, 0.0), nav.NONE, ''),
+             (ZONE, (3.4, 1.9, 0.0), nav.NO_VALID_PATH,
+              r'no valid path to goal \(3.40, 1.90\).*not reachable')]
+    for zone, goal, code, message in cases:
+        world = World(zoned_costmap(room, zone), params=NavigatorParams(authorised_zone=zone))
+        world.unzoned_costmap = ROOM
+        world.navigator.submit('g', goal)
+        out = world.tick()
+        if code == nav.NONE:
+            assert out.outcomes == [] and out.new_plan[-1] == pytest.approx(goal[:2])
+            continue
+        assert [o.code for o in out.outcomes] == [code], out.outcomes
+        assert re.search(message, out.outcomes[0].message), out.outcomes[0].message
 
 
 # --- navigating -------------------------------------------------------------------------
