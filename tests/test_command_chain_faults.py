@@ -78,7 +78,7 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
     system.wait_for_line(r'\[velocity_controller\].*control active', timeout=60)
     for label in CHAIN:
         system.node_pid(label)
-    truth = test_node.record(Odometry, 'ground_truth/odom', qos=200)
+    truth = test_node.record(Odometry, 'ground_truth/odom')
     drive = Drive(test_node)
     stop_times = {}
     try:
