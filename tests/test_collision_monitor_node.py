@@ -191,13 +191,19 @@ def test_zones_sources_and_transforms(start_system, test_node):
             publishers.command = command
             settle(out, state, command, 'DO_NOTHING')
 
-        # A wall 0.205 m ahead, inside PolygonStop: zero out, whatever the direction
-        # (Nav2's stop ignores the command's direction).
+        # A wall 0.205 m ahead, inside PolygonStop: zero out for every command but one
+        # that backs straight away from it (Nav2's stop would hold that too), which is
+        # only slowed down by PolygonSlow (x 0.5).
         publishers.wall_m = 0.205
-        for command in [(0.3, 0.0, 0.0), (-0.3, 0.0, 0.0)]:
+        for command in [(0.3, 0.0, 0.0), (0.0, 0.3, 0.0)]:
             assert expected_twist(command, 0.205).zone == 'PolygonStop'
             publishers.command = command
             settle(out, state, (0.0, 0.0, 0.0), 'STOP PolygonStop')
+        backward = expected_twist((-0.3, 0.0, 0.0), 0.205)
+        assert backward.zone == 'PolygonSlow'
+        assert backward.twist == pytest.approx((-0.15, 0.0, 0.0))
+        publishers.command = (-0.3, 0.0, 0.0)
+        settle(out, state, backward.twist, 'SLOWDOWN PolygonSlow')
 
         # A wall 0.6 m ahead: the footprint approach limits motion towards it as the core
         # computes; backing off and strafing along it pass unchanged.

@@ -71,6 +71,50 @@ def test_stop_needs_min_points_inside():
     assert result.action == 'none'
 
 
+def test_a_stopped_robot_may_back_away_from_what_stopped_it():
+    """
+    Let a robot stopped by points back away from them, and only that way.
+
+    4 points at (0.25, 0) in the stop box: forward and sideways stop; backward
+    (p . v = 0.25 * -0.1 < 0 for each) passes; backward while turning stops (a box turns
+    its corners into things); a circle stop zone lets the same turn pass.
+    """
+    monitor = CollisionMonitor([STOP])
+    points = scan(cluster(0.25, 0.0, 4))
+    assert monitor.process((0.1, 0.0, 0.0), points).action == 'stop'
+    assert monitor.process((0.0, 0.1, 0.0), points).action == 'stop'
+    assert monitor.process((0.0, 0.0, 0.5), points).action == 'stop'
+    result = monitor.process((-0.1, 0.0, 0.0), points)
+    assert (result.twist, result.action) == ((-0.1, 0.0, 0.0), 'none')
+    assert monitor.process((-0.1, 0.0, 0.5), points).action == 'stop'
+    ring = CollisionMonitor([Zone('ring', 'stop', radius=0.3, min_points=4)])
+    assert ring.process((-0.1, 0.0, 0.5), points).twist == (-0.1, 0.0, 0.5)
+    # Points ahead and to the left: back-and-right escapes both, back-and-left does not
+    # (p = (0, 0.25) . v = (-0.1, 0.1) = +0.025 > 0).
+    both = scan(cluster(0.25, 0.0, 4) + cluster(0.0, 0.25, 4))
+    assert monitor.process((-0.1, -0.1, 0.0), both).action == 'none'
+    assert monitor.process((-0.1, 0.1, 0.0), both).action == 'stop'
+
+
+def test_approach_lets_a_robot_back_out_of_a_touch():
+    """
+    Let a robot back out of a touch, scaled by what is behind it.
+
+    A point inside the footprint (0.1 m ahead): forward stops (t_c 0, as in Nav2);
+    backward escapes it and is scaled only by the other points: one 0.65 m behind is
+    reached when the footprint (0.2 m) has moved 0.45 m, at 0.5 m/s after 0.9 s, so the
+    twist is scaled by 0.9 / 1.0.
+    """
+    touching = scan([(0.1, 0.0)])
+    assert CollisionMonitor([APPROACH]).process((0.5, 0.0, 0.0), touching).twist == \
+        (0.0, 0.0, 0.0)
+    assert CollisionMonitor([APPROACH]).process((-0.5, 0.0, 0.0), touching).action == 'none'
+    behind = scan([(0.1, 0.0), (-0.65, 0.0)])
+    result = CollisionMonitor([APPROACH]).process((-0.5, 0.0, 0.0), behind)
+    assert result.collision_time_s == pytest.approx(0.9, abs=2e-4)
+    assert result.twist == pytest.approx((-0.45, 0.0, 0.0), abs=1e-3)
+
+
 def test_slowdown_scales_the_whole_twist():
     """Points at 0.5 m (in the slow box, not the stop box): twist x 0.4."""
     result = CollisionMonitor([STOP, SLOW]).process((0.5, -0.25, 1.0), scan(cluster(0.5, 0.0)))

@@ -6,7 +6,12 @@ arrive as 2-D points (``scan_to_points`` turns a LaserScan into them) with the a
 their stamp; the commanded body twist (vx, vy, wz) is checked against zones around the
 robot, each a polygon or a circle centred on base_link with an action:
 
-- 'stop': at least min_points points inside -> zero twist;
+- 'stop': at least min_points points inside -> zero twist, unless the command moves
+  base_link away from every one of those points (its translation has a negative
+  component toward each: p . v < 0) and does not turn (a circle zone, centred on
+  base_link, may also turn: that moves no part of the footprint nearer). Nav2 stops
+  every motion there, which leaves a robot that crept into the zone (a wall pushed by
+  teleop) unable to back out; here it can, and only that way;
 - 'slowdown': -> the twist times slowdown_ratio;
 - 'limit': -> translation speed capped at linear_limit (direction kept), |wz| at
   angular_limit;
@@ -16,7 +21,9 @@ robot, each a polygon or a circle centred on base_link with an action:
   points are inside it after t_c s, the twist is scaled by t_c / time_before_collision,
   so at the new speed the robot, on the same path, would need exactly
   time_before_collision s to touch them. t_c is found on a simulation_time_step grid
-  and refined by bisection (to ~1e-4 s).
+  and refined by bisection (to ~1e-4 s). Points already inside the zone at t = 0 give
+  t_c = 0 (stop), as in Nav2, except for a command that escapes them as 'stop' allows
+  below: then only the other points count.
 
 As in Nav2, zones are checked in order, a 'stop' ends the search, and the most
 restrictive result (lowest translation speed, then lowest |wz|) wins. A source whose
@@ -201,6 +208,8 @@ class CollisionMonitor:
                 if inside < zone.min_points:
                     continue
                 t_c = math.nan
+                if zone.action_type == 'stop' and _escapes(zone, command, points):
+                    continue
                 safe = _zone_twist(zone, command)
                 reason = f'zone {zone.name!r}: {inside} points inside: {zone.action_type}'
             if _lower(safe, result.twist):
@@ -226,6 +235,9 @@ def collision_time(zone: Zone, twist: Sequence[float], points: np.ndarray) -> Op
     count = int(math.ceil(horizon / zone.simulation_time_step - 1e-9))
     times = np.minimum(np.arange(count + 1) * zone.simulation_time_step, horizon)
     hits = _inside_counts(zone, vx, vy, wz, times, points) >= zone.min_points
+    if hits[0] and _escapes(zone, (vx, vy, wz), points):
+        outside = points[~zone.contains(points[:, 0], points[:, 1])]
+        return collision_time(zone, twist, outside)
     if not np.any(hits):
         return None
     first = int(np.argmax(hits))
@@ -305,6 +317,17 @@ def _zone_twist(zone: Zone, command: Twist2D) -> Twist2D:
     speed = math.hypot(vx, vy)
     scale = zone.linear_limit / speed if speed > zone.linear_limit else 1.0
     return vx * scale, vy * scale, max(-zone.angular_limit, min(zone.angular_limit, wz))
+
+
+def _escapes(zone: Zone, command: Twist2D, points: np.ndarray) -> bool:
+    """Tell whether command moves base_link away from every point inside zone (see 'stop')."""
+    vx, vy, wz = command
+    if vx == 0.0 and vy == 0.0:
+        return False
+    if wz != 0.0 and zone.radius is None:
+        return False
+    inside = points[zone.contains(points[:, 0], points[:, 1])]
+    return bool(np.all(inside[:, 0] * vx + inside[:, 1] * vy < 0.0))
 
 
 def _lower(candidate: Twist2D, current: Twist2D) -> bool:

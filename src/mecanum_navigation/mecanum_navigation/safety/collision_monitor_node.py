@@ -6,7 +6,8 @@ twist in ``base_frame_id``, REP-103) is checked at once against the zones and th
 laser data, and the allowed twist is published on ``cmd_vel_out_topic`` ('cmd_vel'), one
 output per input, as Nav2 does; with no input nothing is published. The rules are those
 of :mod:`mecanum_navigation.safety.collision_monitor`: zones in order, the most restrictive
-wins, 'stop' zeroes any command (whatever its direction, as in Nav2).
+wins, 'stop' zeroes any command but one that moves straight away from what is in the
+zone (Nav2 zeroes every command there; see the core's docstring).
 
 Observation sources (``observation_sources``, default ['scan']): ``SRC.type`` 'scan'
 (the only one supported), ``SRC.topic`` ('scan'; sensor_msgs/LaserScan, sensor-data
