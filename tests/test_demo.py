@@ -104,7 +104,8 @@ def test_the_recording_reads_back_with_the_mcap_library(demo):
     assert statistics.message_count == metadata['message_count']
     for topic in ('/scan', '/tf', '/tf_static', '/odometry/filtered', '/cmd_vel_safe', '/map',
                   '/amcl_pose', '/clock', '/ground_truth/odom', '/joint_states',
-                  '/imu/data_raw', '/plan', '/robot_description', '/local_costmap/costmap'):
+                  '/imu/data_raw', '/plan', '/robot_description', '/local_costmap/costmap',
+                  '/cmd_vel_mux_state', '/zone_guard_state', '/cmd_vel_smoothed'):
         assert topics.get(topic, 0) > 0, topic
     # Counts match the rates over the recorded (simulated) time: lidar 10 Hz, /clock 50 Hz.
     span_s = (statistics.message_end_time - statistics.message_start_time) * 1e-9

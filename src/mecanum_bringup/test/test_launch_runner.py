@@ -130,7 +130,9 @@ def test_stop_escalates_and_leaves_no_process(prefix):
     assert not thread.is_alive()
     assert time.monotonic() - started < 3.0
     assert result['code'] == 0
-    assert 'ignoring SIGINT' in out.getvalue()
+    # The runner's own account (its output, written before it escalates), not the
+    # child's echo of the trap, which a loaded machine may not schedule before SIGTERM.
+    assert 'still running after SIGINT, sending SIGTERM to stubborn' in out.getvalue()
     for pid in pids + [grandchild]:
         assert not alive(pid), f'process {pid} survived shutdown'
 
