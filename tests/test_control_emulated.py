@@ -18,6 +18,7 @@ import time
 
 from geometry_msgs.msg import Twist
 from mecanum_control.kinematics import yaw_from_quaternion
+from mecanum_control.robot_config import default_config_path, load_robot_config
 from nav_msgs.msg import Odometry
 import pytest
 from sensor_msgs.msg import Imu, JointState
@@ -300,7 +301,8 @@ def test_the_board_stops_the_motors_by_itself_when_the_host_hangs(emulated):
     driver = Driver(test_node)
     driver.drive(vx=0.3)
     joints.wait_for(lambda m: min(m.velocity) > 5.0, timeout=10.0)
-    stopped = r'\[board_emulator\].*no effort command within 250 ms: motors stopped'
+    timeout_ms = load_robot_config(default_config_path()).board_command_timeout_ms
+    stopped = rf'\[board_emulator\].*no effort command within {timeout_ms} ms: motors stopped'
     resumed = r'\[board_emulator\].*effort commands resumed'
 
     def count(pattern):

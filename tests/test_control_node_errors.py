@@ -4,6 +4,7 @@ from pathlib import Path
 import re
 import subprocess
 
+from mecanum_control.robot_config import default_config_path, load_robot_config
 import pytest
 
 pytestmark = pytest.mark.integration
@@ -18,7 +19,8 @@ CASES = [
     ('velocity_controller', 'velocity_controller:\n  ros__parameters:\n    kp: -1.0\n',
      'PidGains.kp must be a finite number >= 0'),
     ('hardware_interface', 'hardware_interface:\n  ros__parameters:\n    command_rate_hz: 2.0\n',
-     'command_rate_hz 2.0 is too slow for the board timeout of 250 ms'),
+     'command_rate_hz 2.0 is too slow for the board timeout of '
+     f'{load_robot_config(default_config_path()).board_command_timeout_ms} ms'),
 ]
 
 

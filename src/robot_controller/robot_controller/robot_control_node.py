@@ -10,8 +10,10 @@ at ``publish_rate_hz`` while a motion lasts, then one zero twist; and ``control_
 (std_msgs/String): ``accepted: <command>``, ``done: <motion>`` (finished, or
 ``done: stop``), ``interrupted: <motion>`` (replaced or stopped before its end),
 ``stopped: <motion> blocked by <reason>`` (the chain held it, below) and
-``rejected: <reason>``. A new command replaces the running one; a rejected command never
-moves the robot (the running motion, if any, is stopped). Stop is never refused.
+``rejected: <reason>``; refusals and early stops also go to ``/diagnostics``
+(diagnostic_msgs/DiagnosticArray, WARN with the status as the message). A new command
+replaces the running one; a rejected command never moves the robot (the running motion,
+if any, is stopped). Stop is never refused.
 
 Motions are timed on the node's clock. On simulated time (``use_sim_time``) that clock
 reads 0 until the first /clock message arrives, which on a loaded machine can be seconds
@@ -57,6 +59,7 @@ motor_params.yaml, which launch files pass; the installed file's value by defaul
 import math
 import sys
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_typed
@@ -71,6 +74,8 @@ from robot_controller.command_parser import CommandError, CommandLimits, Motion,
 from robot_controller.zone_check import zone_refusal
 from std_msgs.msg import String
 
+#: Longest wait (s) on shutdown for the final zero twist to be acknowledged.
+CLOSE_ACK_TIMEOUT_S = 0.5
 #: The chain's stages whose state topics (std_msgs/String) explain a stop.
 STATE_TOPICS = {'collision_monitor': 'collision_monitor_state',
                 'zone_guard': 'zone_guard_state'}
@@ -121,6 +126,7 @@ class RobotController(Node):
 
         self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
         self.status_pub = self.create_publisher(String, 'control_status', 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.command_sub = self.create_subscription(
             String, 'control_command', self.on_command, 10)
         self.frames = None
@@ -332,13 +338,32 @@ class RobotController(Node):
         self.cmd_vel_pub.publish(twist)
 
     def report(self, status: str) -> None:
-        """Publish a status line on control_status."""
+        """Publish a status line on control_status; a refusal or a stop also on /diagnostics."""
         self.status_pub.publish(String(data=status))
+        if status.startswith(('rejected', 'stopped')):
+            self.publish_diagnostics(DiagnosticStatus.WARN, status)
+
+    def publish_diagnostics(self, level: bytes, message: str) -> None:
+        """Publish one DiagnosticStatus of this node on /diagnostics."""
+        array = DiagnosticArray(status=[DiagnosticStatus(
+            level=level, name='robot_controller: robot_controller', message=message,
+            hardware_id='none', values=[KeyValue(key='motion', value=self.motion_text
+                                                 if self.motion is not None else '(none)'),
+                                        KeyValue(key='zone file',
+                                                 value=self.zone_file or '(none)')])])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(array)
 
     def close(self) -> None:
-        """Stop the robot: a final zero twist (while the context is still valid)."""
+        """
+        Stop the robot: a final zero twist (while the context is still valid).
+
+        The process may end right after this: wait (up to CLOSE_ACK_TIMEOUT_S) until the
+        subscribers have acknowledged it, so the zero is not lost with the process.
+        """
         if self.context.ok():
             self.cmd_vel_pub.publish(Twist())
+            self.cmd_vel_pub.wait_for_all_acked(Duration(seconds=CLOSE_ACK_TIMEOUT_S))
 
 
 def main(args=None) -> int:

@@ -35,7 +35,9 @@ State: Nav2 publishes nav2_msgs/CollisionMonitorState, which this setup does not
 "ACTION polygon_name" instead, per command while subscribed, ACTION being Nav2's name of the action
 (DO_NOTHING, STOP, SLOWDOWN, APPROACH, LIMIT), e.g. "STOP PolygonStop",
 "STOP invalid source", "DO_NOTHING". Nav2's footprint_topic, velocity_polygon,
-base_shift_correction and stop_pub_timeout are not supported.
+base_shift_correction and stop_pub_timeout are not supported. ``/diagnostics``
+(diagnostic_msgs/DiagnosticArray, every second): the last decision, OK for DO_NOTHING,
+WARN for slowing (SLOWDOWN, APPROACH, LIMIT), ERROR for STOP, with its reason.
 """
 
 import math
@@ -43,6 +45,7 @@ import re
 import sys
 from typing import List, Optional, Tuple
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped, Twist
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
@@ -168,6 +171,8 @@ class CollisionMonitorNode(Node):
         self.frames = TransformBuffer()
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
         self._last_state: Optional[Tuple[str, str]] = None
+        self._last_reason = ''
+        self.commands = 0
 
         self.cmd_pub = self.create_publisher(Twist, cmd_out, 10)
         self.state_pub = (self.create_publisher(String, state_topic, 10)
@@ -180,7 +185,9 @@ class CollisionMonitorNode(Node):
         for source in self.sources:
             self.create_subscription(LaserScan, source.topic, source.on_scan,
                                      qos_profile_sensor_data)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.cmd_sub = self.create_subscription(Twist, cmd_in, self.on_command, 10)
+        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.publish_polygons()
         zones_text = ', '.join(f'{z.name} ({z.action_type}{"" if z.enabled else ", disabled"})'
                                for z in zones)
@@ -287,6 +294,7 @@ class CollisionMonitorNode(Node):
     def on_command(self, msg: Twist) -> None:
         """Publish the allowed twist for one command, the state and the zones."""
         command = (msg.linear.x, msg.linear.y, msg.angular.z)
+        self.commands += 1
         if not all(math.isfinite(v) for v in command):
             self._warn('command', f'non-finite command {command}: publishing zero')
             result, zone = MonitorResult(ZERO, 'stop'), INVALID_COMMAND
@@ -304,6 +312,7 @@ class CollisionMonitorNode(Node):
         out.linear.x, out.linear.y, out.angular.z = (float(v) for v in result.twist)
         self.cmd_pub.publish(out)
         action = NAV2_ACTION[result.action]
+        self._last_reason = result.reason or zone
         if (action, zone) != self._last_state:
             self._last_state = (action, zone)
             if action == 'DO_NOTHING':
@@ -314,6 +323,20 @@ class CollisionMonitorNode(Node):
         if self.state_pub is not None and self.state_pub.get_subscription_count() > 0:
             self.state_pub.publish(String(data=f'{action} {zone}'.strip()))
         self.publish_polygons(only_if_subscribed=True)
+
+    def publish_diagnostics(self) -> None:
+        """Report the last decision on /diagnostics: OK, WARN (slowing) or ERROR (stopping)."""
+        action, zone = self._last_state or ('DO_NOTHING', '')
+        level = {'DO_NOTHING': DiagnosticStatus.OK, 'STOP': DiagnosticStatus.ERROR}.get(
+            action, DiagnosticStatus.WARN)
+        message = f'{action} {zone}'.strip() if self._last_state else 'no command yet'
+        values = [KeyValue(key='commands', value=str(self.commands)),
+                  KeyValue(key='reason', value=self._last_reason)]
+        array = DiagnosticArray(status=[DiagnosticStatus(
+            level=level, name='mecanum_navigation: collision_monitor', message=message,
+            hardware_id='none', values=values)])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(array)
 
     def publish_polygons(self, only_if_subscribed: bool = False) -> None:
         """
