@@ -228,6 +228,11 @@ class HardwareInterface(Node):
         """Open the port when not connected (reconnect timer)."""
         if self._serial is not None:
             return
+        if self._now() == 0.0:
+            # On simulated time before the first /clock: the link's clock has not started,
+            # so its timeouts and the samples' stamps would count from 0 (a node restarted
+            # mid-run saw 'no valid frame for 27 s' at once). The timer retries.
+            return
         try:
             port = serial.Serial(self.port, self.baud_rate, timeout=0.05, write_timeout=0.1)
         except (serial.SerialException, OSError, ValueError) as error:
