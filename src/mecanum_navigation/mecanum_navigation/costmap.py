@@ -34,7 +34,7 @@ from typing import List, Optional, Sequence, Tuple
 
 from mecanum_navigation import grid_search
 from mecanum_navigation.map_io import OccupancyMap
-from mecanum_navigation.safety.zone import Zone
+from mecanum_navigation.safety.zone import points_in_polygon, Zone
 import numpy as np
 
 FREE_SPACE = 0
@@ -643,21 +643,6 @@ class RollingWindow:
         _check_finite('y', y)
         costmap = self.costmap
         return costmap.update_origin(x - 0.5 * costmap.size_x_m, y - 0.5 * costmap.size_y_m)
-
-
-def points_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Return a boolean array: which points (xs, ys) are inside polygon (even-odd rule)."""
-    inside = np.zeros(np.shape(xs), dtype=bool)
-    count = polygon.shape[0]
-    for i in range(count):
-        x1, y1 = polygon[i]
-        x2, y2 = polygon[i - 1 if i > 0 else count - 1]
-        if y1 == y2:
-            continue
-        crosses = (y1 > ys) != (y2 > ys)
-        x_cross = x1 + (ys - y1) * (x2 - x1) / (y2 - y1)
-        inside ^= crosses & (xs < x_cross)
-    return inside
 
 
 def _polygon_mask(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np.ndarray:

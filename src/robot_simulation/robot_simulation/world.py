@@ -48,7 +48,7 @@ from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
 from mecanum_navigation.map_io import (
     find_map_file, load_map, MapError, OccupancyMap, world_to_cell)
-from mecanum_navigation.safety.zone import parse_zone, Zone, ZoneError
+from mecanum_navigation.safety.zone import parse_zone, points_in_polygon, Zone, ZoneError
 import numpy as np
 import yaml
 
@@ -429,21 +429,6 @@ def sample_map(occupancy: OccupancyMap, xs: np.ndarray, ys: np.ndarray,
     values = np.full(rows.shape, outside, dtype=np.int8)
     values[valid] = occupancy.data[rows[valid], cols[valid]]
     return values
-
-
-def points_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon: Sequence[Point]) -> np.ndarray:
-    """Return a bool array: which points (xs, ys) are inside the polygon (even-odd rule)."""
-    xs, ys = np.asarray(xs, dtype=np.float64), np.asarray(ys, dtype=np.float64)
-    inside = np.zeros(xs.shape, dtype=bool)
-    count = len(polygon)
-    for index in range(count):
-        (x1, y1), (x2, y2) = polygon[index], polygon[(index + 1) % count]
-        if y1 == y2:
-            continue
-        straddle = (y1 > ys) != (y2 > ys)
-        crossing_x = x1 + (ys - y1) * (x2 - x1) / (y2 - y1)
-        inside ^= straddle & (xs < crossing_x)
-    return inside
 
 
 def point_segment_distances(segments: np.ndarray, x: float, y: float) -> np.ndarray:

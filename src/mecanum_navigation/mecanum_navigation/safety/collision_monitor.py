@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import math
 from typing import List, Optional, Sequence, Tuple
 
+from mecanum_navigation.safety.zone import points_in_polygon
 import numpy as np
 
 Twist2D = Tuple[float, float, float]
@@ -127,7 +128,7 @@ class Zone:
         """Return which points (x, y in the zone's frame) are inside (boundary included)."""
         if self.radius is not None:
             return xs * xs + ys * ys <= self.radius * self.radius
-        return _points_in_polygon(xs, ys, np.asarray(self.points))
+        return points_in_polygon(xs, ys, np.asarray(self.points))
 
 
 @dataclass(frozen=True)
@@ -350,16 +351,3 @@ def _finite_points(points) -> np.ndarray:
     if array.ndim != 2 or array.shape[1] != 2:
         raise ValueError(f'points must be an (M, 2) array of (x, y), got shape {array.shape}')
     return array[np.all(np.isfinite(array), axis=1)]
-
-
-def _points_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Return which points are inside the polygon (even-odd rule), vectorised."""
-    inside = np.zeros(np.shape(xs), dtype=bool)
-    x2, y2 = polygon[-1]
-    for x1, y1 in polygon:
-        if y1 != y2:
-            crosses = (y1 > ys) != (y2 > ys)
-            x_cross = x1 + (ys - y1) * (x2 - x1) / (y2 - y1)
-            inside ^= crosses & (xs < x_cross)
-        x2, y2 = x1, y1
-    return inside
