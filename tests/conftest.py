@@ -4,6 +4,7 @@ Every test gets its own ROS_DOMAIN_ID (leased, so parallel runs never meet),
 localhost-only discovery, and drives simulated time by publishing /clock itself.
 """
 
+import math
 import os
 from pathlib import Path
 import re
@@ -14,6 +15,7 @@ import threading
 import time
 import uuid
 
+from geometry_msgs.msg import Twist
 from mecanum_bringup.isolation import (
     isolated_environment, lease_domain_id, processes_with_variable)
 import pytest
@@ -194,6 +196,43 @@ class Recorder:
         raise AssertionError(f'no new matching message within {timeout} s')
 
 
+class TwistRepeater:
+    """
+    Publishes one twist (vx, vy, wz) on a topic about every 50 ms (wall time) while set.
+
+    ``twist`` None keeps it silent; ``last_sent_sim_s`` is the simulated time (the test
+    node's clock) of the last twist sent. start() begins, stop() ends the thread.
+    """
+
+    def __init__(self, test_node: 'TestNode', topic: str):
+        self.test_node = test_node
+        self.publisher = test_node.node.create_publisher(Twist, topic, 10)
+        self.twist = None
+        self.last_sent_sim_s = math.nan
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self):
+        self._thread.start()
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+    def _run(self):
+        while not self._stop.is_set():
+            twist = self.twist
+            if twist is not None:
+                msg = Twist()
+                msg.linear.x, msg.linear.y, msg.angular.z = (float(v) for v in twist)
+                try:
+                    self.publisher.publish(msg)
+                except Exception:  # noqa: B902 - the context shut down
+                    return
+                self.last_sent_sim_s = self.test_node.clock_ns * 1e-9
+            time.sleep(0.05)
+
+
 class TestNode:
     """An rclpy node of the test process, spun in a background thread."""
 
@@ -269,6 +308,10 @@ class TestNode:
         if latched:
             qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
         return Recorder(self.node, msg_type, topic, qos)
+
+    def twist_repeater(self, topic: str) -> TwistRepeater:
+        """Return a TwistRepeater on topic (not started)."""
+        return TwistRepeater(self, topic)
 
     def close(self):
         # Stop spinning before destroying what the spin thread waits on (otherwise it

@@ -16,10 +16,7 @@ when it does). Each node's stop time is printed.
 import math
 import os
 import signal
-import threading
-import time
 
-from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
 
@@ -45,30 +42,6 @@ def speed_m_s(msg: Odometry) -> float:
     return math.hypot(twist.linear.x, twist.linear.y)
 
 
-class Drive:
-    """Publishes the current twist at 20 Hz on cmd_vel_scenario from a thread."""
-
-    def __init__(self, test_node):
-        self.publisher = test_node.node.create_publisher(Twist, 'cmd_vel_scenario', 10)
-        self.vx = 0.0
-        self._context = test_node.context
-        self._stop = threading.Event()
-        threading.Thread(target=self._run, daemon=True).start()
-
-    def _run(self):
-        while self._context.ok() and not self._stop.is_set():
-            twist = Twist()
-            twist.linear.x = self.vx
-            try:
-                self.publisher.publish(twist)
-            except Exception:  # noqa: B902 - the context shut down
-                return
-            time.sleep(0.05)
-
-    def stop(self):
-        self._stop.set()
-
-
 def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
         start_system, test_node, tmp_path):
     system = start_system('mecanum_bringup', 'simulation.launch.yaml', 'world:=apartment',
@@ -79,12 +52,15 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
     for label in CHAIN:
         system.node_pid(label)
     truth = test_node.record(Odometry, 'ground_truth/odom')
-    drive = Drive(test_node)
+    # The scenario's command source, through the whole chain.
+    drive = test_node.twist_repeater('cmd_vel_scenario')
+    drive.twist = (0.0, 0.0, 0.0)
+    drive.start()
     stop_times = {}
     try:
         for number, label in enumerate(CHAIN):
             # Back and forth along the living room's open middle (start (2.95, 2.0)).
-            drive.vx = DRIVE_M_S if number % 2 == 0 else -DRIVE_M_S
+            drive.twist = (DRIVE_M_S if number % 2 == 0 else -DRIVE_M_S, 0.0, 0.0)
             truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
             pid = system.node_pid(label)
             killed_at_s = stamp_s(truth.latest())
@@ -98,7 +74,7 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
             system.wait_for_line(rf'\[runner\] restarted {label} \(start 2, pid \d+\)',
                                  timeout=30)
         # The last restarted node (hardware_interface) carries commands again too.
-        drive.vx = DRIVE_M_S
+        drive.twist = (DRIVE_M_S, 0.0, 0.0)
         truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
     finally:
         drive.stop()

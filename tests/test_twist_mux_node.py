@@ -53,35 +53,6 @@ def write_launch(directory: Path) -> Path:
     return path
 
 
-class Source:
-    """Publishes one twist on a topic about every 50 ms (wall time) while set."""
-
-    def __init__(self, test_node, topic):
-        """Create the publisher and start the thread (silent until twist is set)."""
-        self.test_node = test_node
-        self.publisher = test_node.node.create_publisher(Twist, topic, 10)
-        self.twist = None
-        self.last_sent_sim_s = math.nan
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def stop(self):
-        """Stop the thread."""
-        self._stop.set()
-        self._thread.join(timeout=5)
-
-    def _run(self):
-        while not self._stop.is_set():
-            twist = self.twist
-            if twist is not None:
-                msg = Twist()
-                msg.linear.x, msg.linear.y, msg.angular.z = (float(v) for v in twist)
-                self.publisher.publish(msg)
-                self.last_sent_sim_s = self.test_node.clock_ns * 1e-9
-            time.sleep(0.05)
-
-
 class Outputs:
     """The twists received on a topic, each with the simulated time of its arrival."""
 
@@ -171,8 +142,10 @@ def test_priorities_timeouts_nan_and_the_emergency_stop_lock(
     system.wait_for_line(r'\[twist_mux\].*Twist mux started: topics external \(cmd_vel, '
                          r'0\.5 s, priority 90\), joystick')
     states.wait_for(lambda m: m.data == 'none')
-    navigation = Source(test_node, NAV_TOPIC)
-    teleop = Source(test_node, TELEOP_TOPIC)
+    navigation = test_node.twist_repeater(NAV_TOPIC)
+    teleop = test_node.twist_repeater(TELEOP_TOPIC)
+    navigation.start()
+    teleop.start()
     try:
         # Navigation alone passes through.
         navigation.twist = NAV

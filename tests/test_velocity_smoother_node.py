@@ -38,38 +38,6 @@ TIMEOUT_S = PARAMS['velocity_timeout']
 REAL_TIME_FACTOR = 0.5
 
 
-class Commander:
-    """Publishes one twist on a topic about every 50 ms (wall time) while set."""
-
-    def __init__(self, test_node, topic):
-        """Create the publisher; start() begins publishing."""
-        self.test_node = test_node
-        self.publisher = test_node.node.create_publisher(Twist, topic, 10)
-        self.twist = None
-        self.last_sent_sim_s = math.nan
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def start(self):
-        """Start publishing."""
-        self._thread.start()
-
-    def stop(self):
-        """Stop the thread."""
-        self._stop.set()
-        self._thread.join(timeout=5)
-
-    def _run(self):
-        while not self._stop.is_set():
-            twist = self.twist
-            if twist is not None:
-                msg = Twist()
-                msg.linear.x, msg.linear.y, msg.angular.z = (float(v) for v in twist)
-                self.publisher.publish(msg)
-                self.last_sent_sim_s = self.test_node.clock_ns * 1e-9
-            time.sleep(0.05)
-
-
 class Outputs:
     """The twists received on a topic, each with the simulated time of its arrival."""
 
@@ -128,7 +96,7 @@ def test_ramps_keep_direction_reject_nan_and_time_out(start_system, test_node):
     system = start_system('mecanum_navigation', 'velocity_smoother.launch.yaml',
                           'use_sim_time:=true')
     system.wait_for_line(r'\[velocity_smoother\].*Velocity smoother started: /cmd_vel_nav')
-    commander = Commander(test_node, 'cmd_vel_nav')
+    commander = test_node.twist_repeater('cmd_vel_nav')
     commander.start()
     try:
         # At rest: zero commands give zero outputs (and show that discovery is done).
@@ -205,7 +173,7 @@ def test_closed_loop_ramps_from_the_odometry_twist(ros_env, test_node):
          '-p', 'feedback:=CLOSED_LOOP', '-p', 'use_sim_time:=true'],
         env=ros_env, cwd=str(REPO), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
         text=True)
-    commander = Commander(test_node, 'cmd_vel')
+    commander = test_node.twist_repeater('cmd_vel')
     command, measured = np.array([0.5, 0.2, 0.0]), np.array([0.3, 0.1, 0.0])
     commander.twist = tuple(command)
     commander.start()
