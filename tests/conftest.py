@@ -186,14 +186,18 @@ class Recorder:
 
     def wait_for_new(self, predicate, timeout=20.0):
         """Like wait_for, but only among messages received from now on."""
-        start = time.monotonic()
-        deadline = start + timeout
+        return self.wait_since(time.monotonic(), predicate, timeout)
+
+    def wait_since(self, start: float, predicate, timeout=20.0):
+        """Return the first message received since monotonic time start matching predicate."""
+        deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             for msg in self.since(start):
                 if predicate(msg):
                     return msg
             time.sleep(0.02)
-        raise AssertionError(f'no new matching message within {timeout} s')
+        raise AssertionError(f'no new matching message within {timeout} s; the last ones: '
+                             f'{[getattr(m, "data", m) for m in self.since(start)[-10:]]}')
 
 
 class TwistRepeater:

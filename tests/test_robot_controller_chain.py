@@ -92,18 +92,6 @@ class World:
         return msg
 
 
-def wait_since(recorder, start, predicate, timeout=10.0):
-    """Return the first message received since monotonic time start matching predicate."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for msg in recorder.since(start):
-            if predicate(msg):
-                return msg
-        time.sleep(0.02)
-    raise AssertionError(f'no matching message within {timeout} s; got '
-                         f'{[getattr(m, "data", m) for m in recorder.since(start)]}')
-
-
 def is_zero(twist):
     return (twist.linear.x, twist.linear.y, twist.angular.z) == (0.0, 0.0, 0.0)
 
@@ -130,9 +118,9 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
 
     # No pose: every command but stop is refused, and nothing is sent.
     start = send('forward 0.2 m')
-    wait_since(status, start, lambda m: m.data == NO_POSE)
+    status.wait_since(start, lambda m: m.data == NO_POSE, timeout=10.0)
     start = send('stop')
-    wait_since(status, start, lambda m: m.data == 'done: stop')
+    status.wait_since(start, lambda m: m.data == 'done: stop', timeout=10.0)
     assert all(is_zero(m) for m in cmd.since(0.0))
 
     # The pose arrives (its discovery takes a moment: resend until it is seen).
@@ -140,39 +128,40 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
     deadline = time.monotonic() + 15
     while True:
         start = send('forward 0.2 m')
-        reply = wait_since(status, start, lambda m: m.data.startswith(('accepted', 'rejected')))
+        reply = status.wait_since(
+            start, lambda m: m.data.startswith(('accepted', 'rejected')), timeout=10.0)
         if reply.data == 'accepted: forward 0.2 m' or time.monotonic() > deadline:
             break
         assert reply.data == NO_POSE
         time.sleep(0.2)
     assert reply.data == 'accepted: forward 0.2 m'
     # Accepted: it drives through the (passing) chain for its 1 s and ends done.
-    wait_since(cmd, start, lambda m: m.linear.x == pytest.approx(0.2))
-    wait_since(status, start, lambda m: m.data.startswith(('done', 'stopped')))
+    cmd.wait_since(start, lambda m: m.linear.x == pytest.approx(0.2), timeout=10.0)
+    status.wait_since(start, lambda m: m.data.startswith(('done', 'stopped')), timeout=10.0)
     assert [m.data for m in status.since(start)][-1] == 'done: forward'
-    wait_since(cmd, start, is_zero)        # its final zero twist
+    cmd.wait_since(start, is_zero, timeout=10.0)   # its final zero twist
 
     # A command leaving the zone is refused before it starts: no twist at all. The stop
     # that follows sends one zero twist; anything the refused command had sent would
     # have arrived before it (one writer: in order).
     start = send('forward 2 m')
-    wait_since(status, start, lambda m: m.data.startswith('rejected'))
+    status.wait_since(start, lambda m: m.data.startswith('rejected'), timeout=10.0)
     replies = [m.data for m in status.since(start)]
     # From (1, 1) east: 0.25 m (footprint + margin) from the border x = 3 at x = 2.75.
     assert len(replies) == 1 and replies[0].startswith('rejected: forward 2 m: ')
     assert 'authorised zone at (2.76, 1.00)' in replies[0]
     system.wait_for_line(r'\[robot_controller\].*Rejected command .forward 2 m.')
     send('stop')
-    wait_since(status, start, lambda m: m.data == 'done: stop')
-    wait_since(cmd, start, is_zero)
+    status.wait_since(start, lambda m: m.data == 'done: stop', timeout=10.0)
+    cmd.wait_since(start, is_zero, timeout=10.0)
     assert len(cmd.since(start)) == 1
 
     # The chain holds the robot: the motion stops short after blocked_time_s (0.5 s).
     world.chain = 'block'
     start = send('strafe left 1 m')        # 5 s if not held
-    wait_since(status, start, lambda m: m.data == 'accepted: strafe left 1 m')
+    status.wait_since(start, lambda m: m.data == 'accepted: strafe left 1 m', timeout=10.0)
     accepted_ns = test_node.clock_ns
-    wait_since(status, start, lambda m: m.data.startswith(('done', 'stopped')))
+    status.wait_since(start, lambda m: m.data.startswith(('done', 'stopped')), timeout=10.0)
     held_s = (test_node.clock_ns - accepted_ns) * 1e-9
     assert [m.data for m in status.since(start)][-1] == \
         'stopped: strafe left blocked by collision_monitor STOP PolygonStop'
@@ -181,7 +170,7 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
     # It sent its twist until then, then one zero twist and nothing more (the stop's
     # zero twist comes next).
     stop_start = send('stop')
-    wait_since(status, stop_start, lambda m: m.data == 'done: stop')
+    status.wait_since(stop_start, lambda m: m.data == 'done: stop', timeout=10.0)
     deadline = time.monotonic() + 10
     while sum(is_zero(m) for m in cmd.since(start)) < 2 and time.monotonic() < deadline:
         time.sleep(0.02)
@@ -194,11 +183,11 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
     # The chain says nothing at all (e.g. it is down): stopped as well.
     world.chain = 'silent'
     start = send('rotate left 2 s')
-    wait_since(status, start, lambda m: m.data.startswith(('done', 'stopped')))
+    status.wait_since(start, lambda m: m.data.startswith(('done', 'stopped')), timeout=10.0)
     assert [m.data for m in status.since(start)] == [
         'accepted: rotate left 2 s',
         'stopped: rotate left blocked by no output from the command chain']
-    wait_since(cmd, start, is_zero)
+    cmd.wait_since(start, is_zero, timeout=10.0)
 
     # The pose goes stale (older than pose_timeout_s, 1 s): refused again.
     world.publishing_tf.clear()
@@ -207,7 +196,7 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
     while test_node.clock_ns - stale_from_ns < 1.3e9 and time.monotonic() < deadline:
         time.sleep(0.02)
     start = send('forward 0.2 m')
-    wait_since(status, start, lambda m: m.data == NO_POSE)
+    status.wait_since(start, lambda m: m.data == NO_POSE, timeout=10.0)
 
 
 @pytest.mark.parametrize('parameter, value, message', [

@@ -105,18 +105,6 @@ class Outputs:
             time.sleep(0.02)
 
 
-def wait_since(recorder, predicate, start_t, timeout=20.0):
-    """Return the first message received at or after monotonic time start_t matching."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for msg in recorder.since(start_t):
-            if predicate(msg):
-                return msg
-        time.sleep(0.02)
-    raise AssertionError(f'no matching message within {timeout} s; got '
-                         f'{recorder.since(start_t)[-5:]}')
-
-
 def diagnostic_values(msg):
     """Return {key: value} of the twist_mux status in a DiagnosticArray ({} if absent)."""
     for status in msg.status:
@@ -172,7 +160,7 @@ def test_priorities_timeouts_nan_and_the_emergency_stop_lock(
               'twist')
         assert TELEOP_TIMEOUT_S - 0.05 <= back_s - last_teleop_s <= TELEOP_TIMEOUT_S + 0.3
         assert all(v == TELEOP for _, v in outputs.since(mark)[:back - mark])
-        wait_since(states, lambda m: m.data == 'navigation', mark_t)
+        states.wait_since(mark_t, lambda m: m.data == 'navigation')
 
         # A NaN twist from the only live source is not forwarded: the source counts as
         # silent, so one zero twist stops the robot, then nothing.
@@ -181,7 +169,7 @@ def test_priorities_timeouts_nan_and_the_emergency_stop_lock(
         zero = outputs.wait_for(ZERO, mark)
         system.wait_for_line(r'\[WARN\].*\[twist_mux\].*navigation: twist on '
                              r'cmd_vel_smoothed rejected \(linear\.x is nan\)')
-        wait_since(states, lambda m: m.data == 'none', mark_t)
+        states.wait_since(mark_t, lambda m: m.data == 'none')
         diagnostics.wait_for_new(
             lambda m: diagnostic_values(m).get('velocity navigation', '').startswith('silent'))
         assert all(v == NAV for _, v in outputs.since(mark)[:zero - mark])
@@ -202,7 +190,7 @@ def test_priorities_timeouts_nan_and_the_emergency_stop_lock(
         mark_t = time.monotonic()
         lock_pub.publish(Bool(data=True))
         stop = outputs.wait_for(ZERO, resumed)
-        wait_since(states, lambda m: m.data == 'locked by e_stop', mark_t)
+        states.wait_since(mark_t, lambda m: m.data == 'locked by e_stop')
         system.wait_for_line(r'\[WARN\].*\[twist_mux\].*Lock e_stop engaged')
         diagnostics.wait_for_new(
             lambda m: diagnostic_values(m).get('velocity teleop_keyboard', '')
@@ -215,7 +203,7 @@ def test_priorities_timeouts_nan_and_the_emergency_stop_lock(
         mark_t = time.monotonic()
         lock_pub.publish(Bool(data=False))
         outputs.wait_for(TELEOP, stop + 1)
-        wait_since(states, lambda m: m.data == 'teleop_keyboard', mark_t)
+        states.wait_since(mark_t, lambda m: m.data == 'teleop_keyboard')
     finally:
         navigation.stop()
         teleop.stop()
