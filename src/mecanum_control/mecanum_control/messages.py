@@ -8,6 +8,7 @@ Planar odometry (REP-103/105): pose (x, y m, yaw rad) in ``frame_id``, body twis
 from typing import Optional, Sequence
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
 from mecanum_control.kinematics import quaternion_from_yaw
 from nav_msgs.msg import Odometry
@@ -57,3 +58,14 @@ def odometry_transform(odom: Odometry) -> TransformStamped:
     transform.transform.translation.y = position.y
     transform.transform.rotation = odom.pose.pose.orientation
     return transform
+
+
+def diagnostic_array(stamp: Time, name: str, level: bytes, message: str,
+                     values: Sequence[KeyValue] = (),
+                     hardware_id: str = 'none') -> DiagnosticArray:
+    """Return a /diagnostics message of one status (level: DiagnosticStatus.OK, WARN, ...)."""
+    array = DiagnosticArray(status=[DiagnosticStatus(
+        level=level, name=name, message=message, hardware_id=hardware_id,
+        values=list(values))])
+    array.header.stamp = stamp
+    return array

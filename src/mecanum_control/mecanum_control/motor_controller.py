@@ -25,7 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.command_limits import (
     AxisLimits, CommandRejected, MotorCommandCore, TwistLimits)
-from mecanum_control.messages import wheel_array
+from mecanum_control.messages import diagnostic_array, wheel_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from rclpy.node import Node
@@ -149,11 +149,9 @@ class MotorController(Node):
     def publish_diagnostics(self) -> None:
         """Report the command state on /diagnostics."""
         status = self.core.status
-        array = DiagnosticArray(status=[DiagnosticStatus(
-            level=STATUS_LEVELS.get(status, DiagnosticStatus.WARN),
-            name='mecanum_control: motor_controller', message=status)])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(array)
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), 'mecanum_control: motor_controller',
+            STATUS_LEVELS.get(status, DiagnosticStatus.WARN), status, hardware_id=''))
 
 
 def main(args=None) -> int:

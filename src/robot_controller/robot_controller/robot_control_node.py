@@ -61,6 +61,7 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist
+from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_typed
 from mecanum_control.robot_config import default_config_path, parameters_from_yaml
@@ -345,14 +346,12 @@ class RobotController(Node):
 
     def publish_diagnostics(self, level: bytes, message: str) -> None:
         """Publish one DiagnosticStatus of this node on /diagnostics."""
-        array = DiagnosticArray(status=[DiagnosticStatus(
-            level=level, name='robot_controller: robot_controller', message=message,
-            hardware_id='none', values=[KeyValue(key='motion', value=self.motion_text
-                                                 if self.motion is not None else '(none)'),
-                                        KeyValue(key='zone file',
-                                                 value=self.zone_file or '(none)')])])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(array)
+        values = [KeyValue(key='motion',
+                           value=self.motion_text if self.motion is not None else '(none)'),
+                  KeyValue(key='zone file', value=self.zone_file or '(none)')]
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), 'robot_controller: robot_controller', level,
+            message, values))
 
     def close(self) -> None:
         """

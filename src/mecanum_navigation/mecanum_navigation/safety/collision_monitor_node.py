@@ -48,6 +48,7 @@ from typing import List, Optional, Tuple
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped, Twist
 from mecanum_control.log_throttle import KeyedThrottle
+from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
@@ -332,11 +333,9 @@ class CollisionMonitorNode(Node):
         message = f'{action} {zone}'.strip() if self._last_state else 'no command yet'
         values = [KeyValue(key='commands', value=str(self.commands)),
                   KeyValue(key='reason', value=self._last_reason)]
-        array = DiagnosticArray(status=[DiagnosticStatus(
-            level=level, name='mecanum_navigation: collision_monitor', message=message,
-            hardware_id='none', values=values)])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(array)
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), 'mecanum_navigation: collision_monitor', level,
+            message, values))
 
     def publish_polygons(self, only_if_subscribed: bool = False) -> None:
         """

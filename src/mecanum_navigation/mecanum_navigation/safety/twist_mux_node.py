@@ -39,6 +39,7 @@ from typing import List, Optional
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.log_throttle import KeyedThrottle
+from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
 from mecanum_navigation.safety.twist_mux import (
     Entry, non_finite_component, parse_entries, Step, TwistMux)
@@ -193,11 +194,8 @@ class TwistMuxNode(Node):
         values.append(KeyValue(key='current priority', value=str(lock_priority)))
         state = core.state_at(now_s)
         level = DiagnosticStatus.WARN if lock_priority > 0 else DiagnosticStatus.OK
-        array = DiagnosticArray(status=[DiagnosticStatus(
-            level=level, name=DIAGNOSTIC_NAME, message=state, hardware_id='none',
-            values=values)])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(array)
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), DIAGNOSTIC_NAME, level, state, values))
 
     def close(self) -> None:
         """Publish one zero twist on the way out if a source is selected."""

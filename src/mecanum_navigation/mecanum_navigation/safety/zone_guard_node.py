@@ -44,6 +44,7 @@ from typing import Optional, Tuple
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from mecanum_control.log_throttle import KeyedThrottle
+from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, declare_typed
 from mecanum_localization.tf_listener import TransformListener
@@ -282,11 +283,8 @@ class ZoneGuardNode(Node):
             if self._last_result is not None:
                 values.append(KeyValue(key='last scale',
                                        value=f'{self._last_result.scale:.3f}'))
-        array = DiagnosticArray(status=[DiagnosticStatus(
-            level=level, name=DIAGNOSTIC_NAME, message=message, hardware_id='none',
-            values=values)])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(array)
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), DIAGNOSTIC_NAME, level, message, values))
 
 
 def main(args=None) -> int:
