@@ -39,6 +39,7 @@ def write_launch(directory):
             {'from': '$(find-pkg-share robot_controller)/config/robot_controller.yaml'},
             {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
             {'name': 'zone_file', 'value': str(zone_path)},
+            {'name': 'chain_start_timeout_s', 'value': 2.0},
             {'name': 'use_sim_time', 'value': True}]}}]}
     path = directory / 'robot_controller_chain.launch.yaml'
     path.write_text(yaml.safe_dump(launch, sort_keys=False))
@@ -180,14 +181,34 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
                                    for m in twists[:first_zero])
     assert all(is_zero(m) for m in twists[first_zero:]) and len(twists) == first_zero + 2
 
-    # The chain says nothing at all (e.g. it is down): stopped as well.
+    # The chain says nothing at all (e.g. it is down): stopped as well, once
+    # chain_start_timeout_s (2 s here) has passed without a first output.
     world.chain = 'silent'
-    start = send('rotate left 2 s')
+    start = send('rotate left 3 s')
+    status.wait_since(start, lambda m: m.data == 'accepted: rotate left 3 s', timeout=10.0)
+    accepted_ns = test_node.clock_ns
     status.wait_since(start, lambda m: m.data.startswith(('done', 'stopped')), timeout=10.0)
+    silent_s = (test_node.clock_ns - accepted_ns) * 1e-9
     assert [m.data for m in status.since(start)] == [
-        'accepted: rotate left 2 s',
+        'accepted: rotate left 3 s',
         'stopped: rotate left blocked by no output from the command chain']
+    assert 1.95 <= silent_s <= 3.0
     cmd.wait_since(start, is_zero, timeout=10.0)
+
+    # A chain that passes the command late (still discovering its stages): the motion
+    # is timed from its first output, so it still lasts its full 1 s after that.
+    start = send('forward 0.2 m')
+    status.wait_since(start, lambda m: m.data == 'accepted: forward 0.2 m', timeout=10.0)
+    accepted_ns = test_node.clock_ns
+    deadline = time.monotonic() + 10
+    while test_node.clock_ns - accepted_ns < 1.0e9:
+        assert time.monotonic() < deadline, 'the test clock stopped'
+        time.sleep(0.01)
+    world.chain = 'pass'
+    passing_ns = test_node.clock_ns
+    status.wait_since(start, lambda m: m.data.startswith(('done', 'stopped')), timeout=10.0)
+    assert [m.data for m in status.since(start)][-1] == 'done: forward'
+    assert (test_node.clock_ns - passing_ns) * 1e-9 >= 0.95
 
     # The pose goes stale (older than pose_timeout_s, 1 s): refused again.
     world.publishing_tf.clear()

@@ -8,8 +8,11 @@ commanded speed, without a break, for ``blocked_time_s``: the linear speed
 (hypot(vx, vy)) and the yaw rate are each compared with what the motion commands, a
 component commanded as zero does not count, and the output counts as holding the robot
 when every counted component is below the ratio. A chain that sends no output for
-``blocked_time_s`` (from the motion's start or from its last output) holds the robot too:
-motor_controller listens only to the chain, so it is not moving.
+``blocked_time_s`` after its last output, or none at all for ``start_timeout_s`` after the
+motion's start, holds the robot too: motor_controller listens only to the chain, so it is
+not moving. The first output is awaited longer because a chain that has just been
+started may still be finding its stages (DDS discovery); the caller times the motion from
+that first output (``first_output_s``), so a late chain does not shorten it.
 
 The reason given is what the chain's stages said (``collision_monitor_state``,
 ``zone_guard_state``): among the stages whose latest state is not a pass
@@ -36,18 +39,24 @@ def is_pass_state(state: str) -> bool:
 class BlockedDetector:
     """Watches the chain's output during one motion and tells when it holds the robot."""
 
-    def __init__(self, blocked_speed_ratio: float = 0.1, blocked_time_s: float = 0.5):
+    def __init__(self, blocked_speed_ratio: float = 0.1, blocked_time_s: float = 0.5,
+                 start_timeout_s: float = 5.0):
         """Check the settings (ValueError naming the bad one)."""
         if not (math.isfinite(blocked_speed_ratio) and 0.0 < blocked_speed_ratio < 1.0):
             raise ValueError('blocked_speed_ratio must be within (0, 1), got '
                              f'{blocked_speed_ratio}')
         if not (math.isfinite(blocked_time_s) and blocked_time_s > 0.0):
             raise ValueError(f'blocked_time_s must be finite and > 0, got {blocked_time_s}')
+        if not (math.isfinite(start_timeout_s) and start_timeout_s >= blocked_time_s):
+            raise ValueError('start_timeout_s must be finite and >= blocked_time_s '
+                             f'({blocked_time_s}), got {start_timeout_s}')
         self.blocked_speed_ratio = float(blocked_speed_ratio)
         self.blocked_time_s = float(blocked_time_s)
+        self.start_timeout_s = float(start_timeout_s)
         self.active = False
         self._commanded = (0.0, 0.0)       # linear speed m/s, |yaw rate| rad/s
         self._start_s = 0.0
+        self._first_output_s: Optional[float] = None
         self._last_output_s: Optional[float] = None
         self._held_since_s: Optional[float] = None
         self._sequence = 0
@@ -59,6 +68,7 @@ class BlockedDetector:
         self.active = True
         self._commanded = (math.hypot(vx, vy), abs(wz))
         self._start_s = now_s
+        self._first_output_s = None
         self._last_output_s = None
         self._held_since_s = None
         self._last_problem = None
@@ -66,6 +76,11 @@ class BlockedDetector:
     def stop(self) -> None:
         """Stop watching (the motion ended)."""
         self.active = False
+
+    @property
+    def first_output_s(self) -> Optional[float]:
+        """When the chain first sent an output during this motion (None: not yet)."""
+        return self._first_output_s
 
     def holds(self, vx: float, vy: float, wz: float) -> bool:
         """Whether an output twist is below the ratio in every component commanded."""
@@ -81,6 +96,8 @@ class BlockedDetector:
         """Take one output twist of the chain, received at now_s."""
         if not self.active:
             return
+        if self._first_output_s is None:
+            self._first_output_s = now_s
         self._last_output_s = now_s
         if not all(math.isfinite(v) for v in (vx, vy, wz)) or self.holds(vx, vy, wz):
             if self._held_since_s is None:
@@ -102,8 +119,11 @@ class BlockedDetector:
             return None
         if self._held_since_s is not None and now_s - self._held_since_s >= self.blocked_time_s:
             return self.reason()
-        quiet_since = self._start_s if self._last_output_s is None else self._last_output_s
-        if now_s - quiet_since >= self.blocked_time_s:
+        if self._last_output_s is None:
+            quiet_s, limit_s = now_s - self._start_s, self.start_timeout_s
+        else:
+            quiet_s, limit_s = now_s - self._last_output_s, self.blocked_time_s
+        if quiet_s >= limit_s:
             return NO_OUTPUT
         return None
 

@@ -43,6 +43,10 @@ the chain sends nothing for that long, the motion ends at once (zero twist, a wa
 no output from the command chain``; rules in :mod:`robot_controller.blocked_detector`).
 The watch starts once the chain has shown itself (a publisher of, or a message on,
 ``chain_output_topic``), so the minimal system, which has no chain, runs as before.
+While the chain is watched, a motion is timed from the chain's first output: a chain
+just started may take a while to find its stages (DDS discovery), and a motion timed
+from the command would then be cut short by that delay. A chain that sends nothing for
+``chain_start_timeout_s`` after the motion's start stops it (no output, as above).
 
 Parameters (``config/robot_controller.yaml``): ``linear_speed_mps`` (0.2),
 ``angular_speed_radps`` (0.5), ``max_linear_speed_mps`` (0.5),
@@ -53,7 +57,7 @@ motor_params.yaml, which launch files pass; the installed file's value by defaul
 ``zone_margin_m`` (0.05, >= 0); ``global_frame`` ('map'); ``robot_base_frame``
 ('base_link'); ``pose_timeout_s`` (1.0, > 0); ``chain_output_topic`` ('cmd_vel_safe';
 '' = do not watch the chain, never stop short); ``blocked_speed_ratio`` (0.1, in (0, 1));
-``blocked_time_s`` (0.5, > 0).
+``blocked_time_s`` (0.5, > 0); ``chain_start_timeout_s`` (5.0, >= blocked_time_s).
 """
 
 import math
@@ -122,7 +126,7 @@ class RobotController(Node):
 
         self.motion = None
         self.motion_text = ''
-        self.motion_end = None   # None while a motion waits for the clock to start
+        self.motion_start_s = None   # None while a motion waits for the clock to start
         self.accepted = False    # False while a motion waits for its zone check
 
         self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
@@ -184,8 +188,9 @@ class RobotController(Node):
             self, 'chain_output_topic', 'cmd_vel_safe').strip()
         ratio = declare_typed(self, 'blocked_speed_ratio', 0.1)
         blocked_time_s = declare_typed(self, 'blocked_time_s', 0.5)
+        start_timeout_s = declare_typed(self, 'chain_start_timeout_s', 5.0)
         try:
-            self.detector = BlockedDetector(ratio, blocked_time_s)
+            self.detector = BlockedDetector(ratio, blocked_time_s, start_timeout_s)
         except ValueError as error:
             raise ValueError(f'parameter {error}') from None
 
@@ -237,7 +242,7 @@ class RobotController(Node):
 
     def zone_problem(self, motion: Motion, text: str) -> str:
         """Return why motion may not run in the authorised zone, or '' if it may."""
-        now_s = self.get_clock().now().nanoseconds * 1e-9
+        now_s = self.now_s()
         no_pose = (f'cannot check the authorised zone: no recent {self.global_frame} -> '
                    f'{self.base_frame} pose (is localisation running?)')
         try:
@@ -256,12 +261,15 @@ class RobotController(Node):
         return zone_refusal(self.zone, (pose.x, pose.y, pose.yaw), motion, text,
                             self.footprint_radius_m, self.zone_margin_m)
 
+    def now_s(self) -> float:
+        """Return the node's clock in seconds (simulated time with use_sim_time)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
     def start_motion(self) -> None:
-        """Start timing the accepted motion now, and send its first twist."""
+        """Start the accepted motion now, and send its first twist."""
         motion = self.motion
-        now = self.get_clock().now()
-        self.motion_end = now + Duration(seconds=motion.duration_s)
-        self.detector.start(now.nanoseconds * 1e-9, motion.vx, motion.vy, motion.wz)
+        self.motion_start_s = self.now_s()
+        self.detector.start(self.motion_start_s, motion.vx, motion.vy, motion.wz)
         self.get_logger().info(
             f'Executing {self.motion_text!r}: vx={motion.vx:.3f} m/s vy={motion.vy:.3f} m/s '
             f'wz={motion.wz:.3f} rad/s for {motion.duration_s:.2f} s')
@@ -271,16 +279,18 @@ class RobotController(Node):
         """Keep publishing the running motion; end it when its time is up or it is held."""
         if self.motion is None:
             return
-        if self.motion_end is None:   # accepted before the clock started
+        if self.motion_start_s is None:   # accepted before the clock started
             if self.clock_started():
                 self.begin()
             return
-        now = self.get_clock().now()
-        if now >= self.motion_end:
+        now_s = self.now_s()
+        watching = self.watching_chain()
+        # Watching the chain, the motion runs from its first output (None: not yet).
+        start_s = self.detector.first_output_s if watching else self.motion_start_s
+        if start_s is not None and now_s >= start_s + self.motion.duration_s:
             self.finish(f'done: {self.motion.name}')
             return
-        blocked = self.detector.check(now.nanoseconds * 1e-9) if self.watching_chain() \
-            else None
+        blocked = self.detector.check(now_s) if watching else None
         if blocked:
             self.get_logger().warning(
                 f'Stopping {self.motion_text!r} short: the command chain holds the robot '
@@ -301,15 +311,13 @@ class RobotController(Node):
         if not self.chain_seen and self.count_publishers(self.chain_sub.topic_name) > 0:
             self.chain_seen = True
             motion = self.motion
-            self.detector.start(self.get_clock().now().nanoseconds * 1e-9,
-                                motion.vx, motion.vy, motion.wz)
+            self.detector.start(self.now_s(), motion.vx, motion.vy, motion.wz)
         return self.chain_seen
 
     def on_chain_output(self, msg: Twist) -> None:
         """Take one output twist of the command chain."""
         self.chain_seen = True
-        self.detector.on_output(self.get_clock().now().nanoseconds * 1e-9,
-                                msg.linear.x, msg.linear.y, msg.angular.z)
+        self.detector.on_output(self.now_s(), msg.linear.x, msg.linear.y, msg.angular.z)
 
     def interrupt(self) -> None:
         """End the running motion early, if there is one."""
@@ -325,7 +333,7 @@ class RobotController(Node):
     def finish(self, status: str) -> None:
         """Stop the robot and report status."""
         self.motion = None
-        self.motion_end = None
+        self.motion_start_s = None
         self.detector.stop()
         self.cmd_vel_pub.publish(Twist())
         self.report(status)

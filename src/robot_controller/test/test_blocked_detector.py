@@ -4,8 +4,9 @@ import pytest
 from robot_controller.blocked_detector import BlockedDetector, is_pass_state, NO_OUTPUT
 
 # blocked_speed_ratio 0.1, blocked_time_s 0.5: a motion at 0.2 m/s is held while the
-# chain's output is under 0.02 m/s, and blocked after 0.5 s of that without a break.
-RATIO, TIME_S = 0.1, 0.5
+# chain's output is under 0.02 m/s, and blocked after 0.5 s of that without a break;
+# start_timeout_s 2: a chain that sends nothing from the motion's start blocks it after 2 s.
+RATIO, TIME_S, START_S = 0.1, 0.5, 2.0
 
 
 def feed(detector, start_s, end_s, twist, period_s=0.05):
@@ -16,7 +17,7 @@ def feed(detector, start_s, end_s, twist, period_s=0.05):
 
 
 def started(vx=0.2, vy=0.0, wz=0.0, now_s=10.0):
-    detector = BlockedDetector(RATIO, TIME_S)
+    detector = BlockedDetector(RATIO, TIME_S, START_S)
     detector.start(now_s, vx, vy, wz)
     return detector
 
@@ -57,10 +58,22 @@ def test_a_break_restarts_the_count():
     assert detector.check(10.9) is not None             # 0.5 s, the last output holds
 
 
-def test_no_output_at_all_stops_after_blocked_time():
+def test_no_output_at_all_stops_after_start_timeout():
     detector = started()
-    assert detector.check(10.49) is None
-    assert detector.check(10.5) == NO_OUTPUT
+    assert detector.check(11.99) is None
+    assert detector.first_output_s is None
+    assert detector.check(12.0) == NO_OUTPUT
+
+
+def test_a_late_first_output_is_when_the_motion_starts():
+    detector = started()
+    detector.on_output(11.5, 0.2, 0.0, 0.0)             # the chain found its stages late
+    detector.on_output(11.55, 0.2, 0.0, 0.0)
+    assert detector.first_output_s == 11.5
+    assert detector.check(12.0) is None                 # past 2 s, but it passes
+    assert detector.check(12.05) == NO_OUTPUT           # 0.5 s after its last output
+    detector.start(20.0, 0.2, 0.0, 0.0)                 # the next motion waits afresh
+    assert detector.first_output_s is None
 
 
 def test_the_chain_going_silent_mid_motion_stops():
@@ -160,3 +173,9 @@ def test_pass_states():
 def test_bad_settings_are_refused(ratio, time_s, message):
     with pytest.raises(ValueError, match=message):
         BlockedDetector(ratio, time_s)
+
+
+@pytest.mark.parametrize('start_s', [0.4, float('nan'), float('inf')])
+def test_a_start_timeout_shorter_than_blocked_time_or_not_finite_is_refused(start_s):
+    with pytest.raises(ValueError, match='start_timeout_s'):
+        BlockedDetector(RATIO, TIME_S, start_s)
