@@ -16,9 +16,10 @@ smoothly when it moves. The price is
 the median transport delay (about 1 ms on a serial link), which the stamps include.
 A board whose clock counts the host's own time (the simulated board counts simulated
 time, ``same_clock``) has an offset of a whole number of u32 wraps: the median is
-rounded to it, so stamps carry no transport delay, but never lie after the host's now
-(a node on simulated time hears /clock in steps; its filters must not get samples
-from their future).
+rounded to it, so stamps carry no transport delay. They may lie up to one /clock step
+after the host's now (a node on simulated time hears /clock in steps, and the board's
+samples of a step can arrive before its /clock): clamping them to now gave two IMU
+samples 10 ms apart the same stamp whenever the serial data won that race.
 A board clock that goes back (the board restarted) or an offset that falls by more
 than ``reset_threshold_s`` (the host clock went back, e.g. simulated time restarted; a
 late sample only ever raises the offset) starts over.
@@ -84,10 +85,6 @@ class BoardClockSync:
         bisect.insort(self._sorted, offset)
         if len(self._window) > self.window_samples:
             del self._sorted[bisect.bisect_left(self._sorted, self._window.popleft())]
-        if self.same_clock:
-            # Never after the host's now: a node on simulated time hears /clock in steps,
-            # and its filters must not get samples from their future.
-            return min(self._board_s + self.offset_s(), host_now_s)
         return self._board_s + self.offset_s()
 
     def _restart(self, board_time_us: int) -> None:
