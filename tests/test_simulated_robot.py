@@ -57,6 +57,10 @@ def test_frames_are_complete_and_the_ekf_keeps_the_heading_when_wheels_slip(
     filtered = test_node.record(Odometry, 'odometry/filtered')
     system.wait_for_line(r'\[hardware_interface\].*IMU calibrated at rest', timeout=60)
     system.wait_for_line(r'\[ekf_filter_node\].*EKF started')
+    # Both sensors fused (the IMU waits for its mount on /tf_static, which discovery may
+    # deliver seconds late: driving before that would test wheel odometry alone).
+    system.wait_for_line(r'\[ekf_filter_node\].*odom0 odom: first message taken in')
+    system.wait_for_line(r'\[ekf_filter_node\].*imu0 imu/data_raw: first message taken in')
     filtered.wait_for(lambda m: True)
 
     # The description alone publishes the mounts, once each, as configured.

@@ -18,14 +18,18 @@ with ``publish_acceleration``, and world_frame -> base_link_frame on ``/tf`` wit
 
 Every ``1 / frequency`` s the queued measurements are fused in stamp order and the
 estimate is published with the stamp of the latest one; with no measurement for
-``sensor_timeout`` the filter predicts up to the current time instead.
+``sensor_timeout`` the filter predicts up to the current time instead. A sensor's
+messages are dropped, with a throttled warning, while its frame has no transform to
+base_link_frame (e.g. /tf_static not heard yet) or its values are unusable; the first
+one used is logged ("imu0 imu/data_raw: first message taken in"), so a launch can tell
+when every sensor is being fused.
 """
 
 from itertools import count
 import math
 import sys
 import time
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Set, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import (
@@ -95,6 +99,7 @@ class EkfNode(Node):
         self._last_published_time: Optional[float] = None
         self._last_measurement_s = -math.inf  # stamp of the newest measurement fused
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
+        self._sensors_in_use: Set[str] = set()   # sensors whose messages have been used
 
         self.odom_pub = self.create_publisher(Odometry, 'odometry/filtered', 10)
         self.accel_pub = (self.create_publisher(AccelWithCovarianceStamped, 'accel/filtered', 10)
@@ -198,9 +203,14 @@ class EkfNode(Node):
             self._warn(f'{sensor.topic} problem', f'{sensor.topic}: {problems[0]}: message '
                        'skipped')
             return
-        for conversion in conversions:
-            for measurement in conversion.measurements:
-                self._pending.append((measurement.time_s, next(self._sequence), measurement))
+        measurements = [m for conversion in conversions for m in conversion.measurements]
+        for measurement in measurements:
+            self._pending.append((measurement.time_s, next(self._sequence), measurement))
+        if measurements and sensor.name not in self._sensors_in_use:
+            # Until then its messages were dropped (warned: no transform, unusable values).
+            self._sensors_in_use.add(sensor.name)
+            self.get_logger().info(f'{sensor.name} {sensor.topic}: first message taken in, '
+                                   'fusing it from now on')
 
     def _pose_conversion(self, sensor: SensorConfig, time_s: float, header_frame: str,
                          pose, covariance, child_frame: str = '') -> Optional[Conversion]:
