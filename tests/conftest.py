@@ -200,7 +200,31 @@ class Recorder:
                              f'{[getattr(m, "data", m) for m in self.since(start)[-10:]]}')
 
 
-class TwistRepeater:
+class LoopThread:
+    """
+    A daemon thread that runs the subclass's _run() from start() until stop().
+
+    _run() loops while ``not self._stop.is_set()``; stop() waits up to 5 s for it.
+    """
+
+    def __init__(self):
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self):
+        """Start the thread."""
+        self._thread.start()
+
+    def stop(self):
+        """Stop the thread."""
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+    def _run(self):
+        raise NotImplementedError
+
+
+class TwistRepeater(LoopThread):
     """
     Publishes one twist (vx, vy, wz) on a topic about every 50 ms (wall time) while set.
 
@@ -213,15 +237,7 @@ class TwistRepeater:
         self.publisher = test_node.node.create_publisher(Twist, topic, 10)
         self.twist = None
         self.last_sent_sim_s = math.nan
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def start(self):
-        self._thread.start()
-
-    def stop(self):
-        self._stop.set()
-        self._thread.join(timeout=5)
+        super().__init__()
 
     def _run(self):
         while not self._stop.is_set():
@@ -286,6 +302,14 @@ class TestNode:
                     return
                 time.sleep(step_s / (1.0 if follow_wall_clock else real_time_factor))
         threading.Thread(target=run, daemon=True).start()
+
+    def wait_sim(self, sim_seconds: float, timeout: float = 60.0):
+        """Wait until simulated time (clock_ns) has advanced by sim_seconds."""
+        target = self.clock_ns + int(sim_seconds * 1e9)
+        deadline = time.monotonic() + timeout
+        while self.clock_ns < target:
+            assert time.monotonic() < deadline, 'simulated time does not advance'
+            time.sleep(0.01)
 
     def call(self, client, request, timeout: float = 15.0):
         """

@@ -15,7 +15,6 @@ import math
 from pathlib import Path
 import re
 import subprocess
-import threading
 import time
 
 from geometry_msgs.msg import PolygonStamped, TransformStamped, Twist
@@ -27,6 +26,7 @@ import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
+from tests.conftest import LoopThread
 from tf2_msgs.msg import TFMessage
 import yaml
 
@@ -95,7 +95,7 @@ def expected_twist(command, distance_m):
     return monitor.process(command, [SourceData('scan', points, 0.0)])
 
 
-class Publishers:
+class Publishers(LoopThread):
     """Publishes commands (~20 Hz) and wall scans (~10 Hz) from a thread, while set."""
 
     def __init__(self, test_node):
@@ -107,17 +107,7 @@ class Publishers:
         self.scans = False
         self.wall_m = None
         self.last_scan_stamp_s = math.nan
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def start(self):
-        """Start publishing."""
-        self._thread.start()
-
-    def stop(self):
-        """Stop the thread."""
-        self._stop.set()
-        self._thread.join(timeout=5)
+        super().__init__()
 
     def _run(self):
         tick = 0

@@ -20,7 +20,6 @@ after set_pose may have moved on by at most |v| times the time since its stamp.
 from pathlib import Path
 import re
 import subprocess
-import threading
 import time
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
@@ -32,6 +31,7 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu
+from tests.conftest import LoopThread
 from tf2_msgs.msg import TFMessage
 import yaml
 
@@ -63,7 +63,7 @@ def diagonal_6(values) -> list:
     return np.diag(np.array(values, dtype=float)).reshape(-1).tolist()
 
 
-class Sensors:
+class Sensors(LoopThread):
     """Publishes odometry and IMU samples stamped on the test's simulated clock grid."""
 
     def __init__(self, test_node):
@@ -73,17 +73,7 @@ class Sensors:
         self.imu_pub = test_node.node.create_publisher(Imu, 'imu/data_raw', 50)
         self.paused = False
         self.nan_next = set()   # 'odom' and/or 'imu': the next message carries a NaN
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def start(self):
-        """Start publishing."""
-        self._thread.start()
-
-    def stop(self):
-        """Stop publishing."""
-        self._stop.set()
-        self._thread.join(timeout=5)
+        super().__init__()
 
     def _run(self):
         next_odom = next_imu = None
@@ -142,15 +132,6 @@ def publish_imu_mount(test_node):
     mount.transform.rotation.w = 1.0
     publisher.publish(TFMessage(transforms=[mount]))
     return publisher
-
-
-def wait_sim(test_node, sim_seconds, timeout=60.0):
-    """Wait until simulated time has advanced by sim_seconds."""
-    target = test_node.clock_ns + int(sim_seconds * 1e9)
-    deadline = time.monotonic() + timeout
-    while test_node.clock_ns < target:
-        assert time.monotonic() < deadline, 'simulated time does not advance'
-        time.sleep(0.01)
 
 
 def at_or_after(recorder, stamp_s, yaw=None, timeout=30.0):
@@ -236,7 +217,7 @@ def test_tracks_odometry_survives_bad_data_and_dropouts(localization):
     # same velocity, the pose uncertainty grows, and it picks up again afterwards.
     dropout_start = test_node.clock_ns * 1e-9
     sensors.paused = True
-    wait_sim(test_node, 2.0)
+    test_node.wait_sim(2.0)
     sensors.paused = False
     during = [m for m in filtered.since(0.0)
               if dropout_start + 0.5 < seconds(m.header.stamp) < dropout_start + 1.9]

@@ -199,11 +199,7 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
     # is timed from its first output, so it still lasts its full 1 s after that.
     start = send('forward 0.2 m')
     status.wait_since(start, lambda m: m.data == 'accepted: forward 0.2 m', timeout=10.0)
-    accepted_ns = test_node.clock_ns
-    deadline = time.monotonic() + 10
-    while test_node.clock_ns - accepted_ns < 1.0e9:
-        assert time.monotonic() < deadline, 'the test clock stopped'
-        time.sleep(0.01)
+    test_node.wait_sim(1.0, timeout=10.0)
     world.chain = 'pass'
     passing_ns = test_node.clock_ns
     status.wait_since(start, lambda m: m.data.startswith(('done', 'stopped')), timeout=10.0)

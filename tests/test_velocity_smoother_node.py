@@ -75,15 +75,6 @@ class Outputs:
                              f'{self.since(max(start, self.count() - 5))}')
 
 
-def wait_sim(test_node, sim_seconds, timeout=60.0):
-    """Wait until simulated time has advanced by sim_seconds."""
-    target = test_node.clock_ns + int(sim_seconds * 1e9)
-    deadline = time.monotonic() + timeout
-    while test_node.clock_ns < target:
-        assert time.monotonic() < deadline, 'simulated time does not advance'
-        time.sleep(0.01)
-
-
 def ramp(outputs, start, end):
     """Return the (times, twists) of outputs[start:end + 1] as arrays."""
     items = outputs.since(start)[:end - start + 1]
@@ -142,10 +133,10 @@ def test_ramps_keep_direction_reject_nan_and_time_out(start_system, test_node):
             assert twist == pytest.approx(target * min(1.0, eta * (k + 1)), abs=1e-9)
 
         # No command for velocity_timeout: ramp down, one zero, then silence.
-        wait_sim(test_node, 0.3)
+        test_node.wait_sim(0.3)
         mark = outputs.count()
         commander.twist = None
-        wait_sim(test_node, 0.2)
+        test_node.wait_sim(0.2)
         last_command_s = commander.last_sent_sim_s
         first = outputs.wait_for(lambda v: v[0] < target[0], mark)
         zero = outputs.wait_for(lambda v: np.all(v == 0.0), first)
@@ -155,7 +146,7 @@ def test_ramps_keep_direction_reject_nan_and_time_out(start_system, test_node):
         decel = np.min(-MAX_DECEL / FREQUENCY_HZ / target)
         for k, twist in enumerate(twists):
             assert twist == pytest.approx(target * max(0.0, 1.0 - decel * (k + 1)), abs=1e-9)
-        wait_sim(test_node, 1.5 * TIMEOUT_S)
+        test_node.wait_sim(1.5 * TIMEOUT_S)
         assert outputs.count() == zero + 1, outputs.since(zero)
     finally:
         commander.stop()

@@ -13,7 +13,6 @@ import math
 from pathlib import Path
 import re
 import subprocess
-import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -26,6 +25,7 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
+from tests.conftest import LoopThread
 from tf2_msgs.msg import TFMessage
 import yaml
 
@@ -69,7 +69,7 @@ def transform(parent, child, planar, stamp_ns):
     return msg
 
 
-class Robot:
+class Robot(LoopThread):
     """Publishes /tf (map -> odom, odom -> base_link) and commands from a thread (~20 Hz)."""
 
     def __init__(self, test_node):
@@ -85,17 +85,7 @@ class Robot:
         self.ekf = True             # publish odom -> base_link
         self.command = None
         self.last_ekf_stamp_s = math.nan
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def start(self):
-        """Start publishing."""
-        self._thread.start()
-
-    def stop(self):
-        """Stop the thread."""
-        self._stop.set()
-        self._thread.join(timeout=5)
+        super().__init__()
 
     def publish_sigma(self, sigma_m):
         """Publish amcl_pose with a position standard deviation sigma_m (m) along y."""
