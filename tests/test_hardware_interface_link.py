@@ -16,8 +16,10 @@ import threading
 import time
 import tty
 
+from builtin_interfaces.msg import Time
 from mecanum_control import esp32_protocol as proto
 import pytest
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
@@ -244,3 +246,26 @@ def test_clear_board_faults_service_sends_the_request(link_setup):
     assert host.stop() == 0
     # Shutting down sent a final zero.
     assert board.frames(proto.MotorEfforts)[-1].message.efforts == (0.0, 0.0, 0.0, 0.0)
+
+
+def test_on_simulated_time_the_board_is_opened_after_the_first_clock(ros_env, test_node,
+                                                                     tmp_path):
+    link = tmp_path / 'ttyESP32'
+    board = ScriptedBoard(link)
+    host = HostProcess(ros_env, link, 'use_sim_time:=true', 'link_clock:=ros')
+    try:
+        # No /clock yet: the node says what it waits for, and that nobody publishes it.
+        host.wait_for(r'Waiting for the first /clock message .*: 0 publisher\(s\) of /clock')
+        assert host.count('Connected to the board') == 0
+        clock = test_node.node.create_publisher(Clock, '/clock', 10)
+        host.wait_for(r'Waiting for the first /clock message .*: 1 publisher\(s\) of /clock')
+        clock.publish(Clock(clock=Time(sec=100)))
+        host.wait_for('Connected to the board')
+        waits = host.count('Waiting for the first /clock')
+        for step in range(60):  # 3 s with time running: past the next report's due time
+            clock.publish(Clock(clock=Time(sec=100, nanosec=step * 10_000_000)))
+            time.sleep(0.05)
+        assert host.count('Waiting for the first /clock') == waits
+    finally:
+        host.stop()
+        board.close()

@@ -48,6 +48,8 @@ from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
 ZERO_EFFORTS = (0.0, 0.0, 0.0, 0.0)
+#: Wall-clock seconds between warnings while simulated time has not started.
+CLOCK_WAIT_REPORT_S = 2.0
 #: Messages only the board sends: receiving them proves the board is alive.
 BOARD_MESSAGES = (proto.EncoderTicks, proto.ImuSample, proto.BoardStatus)
 
@@ -143,12 +145,28 @@ class HardwareInterface(Node):
                                                clock=self._link_clock)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics,
                                             clock=self._link_clock)
+        # On simulated time nothing above runs before the first /clock: say so, on the
+        # wall clock, if it does not come (and whether anyone publishes /clock at all).
+        self.clock_wait_timer = None
+        if link_clock == 'ros':
+            self.clock_wait_timer = self.create_timer(
+                CLOCK_WAIT_REPORT_S, self.report_clock_wait,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._reader = threading.Thread(target=self._read_loop, name='serial_reader',
                                         daemon=True)
         self._reader.start()
         self.get_logger().info(f'Hardware interface started, board at {self.port} '
                                f'(protocol v{proto.PROTOCOL_VERSION})')
         self.connect()
+
+    def report_clock_wait(self) -> None:
+        """Warn while simulated time has not started (no /clock message yet)."""
+        if self._now() != 0.0:
+            self.clock_wait_timer.cancel()
+            return
+        self.get_logger().warning(
+            'Waiting for the first /clock message (use_sim_time) before opening the board: '
+            f'{self.count_publishers("/clock")} publisher(s) of /clock discovered')
 
     def _now(self) -> float:
         """Link time in seconds: steady clock, or simulated time with use_sim_time."""
