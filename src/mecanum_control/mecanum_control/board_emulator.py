@@ -114,6 +114,8 @@ class BoardLink:
         self.rx_bad_frames_reported = 0
         self.due_s: Dict[proto.MessageType, float] = {}
         self._pending = b''
+        #: MOTOR_EFFORTS frames taken so far (the simulator's lockstep counts answers).
+        self.commands_received = 0
 
     def plug(self) -> None:
         """Plug the board in: a fresh pty and decoder."""
@@ -156,6 +158,7 @@ class BoardLink:
             message = frame.message
             if isinstance(message, proto.MotorEfforts):
                 self.model.command(message.efforts, message.command_timeout_ms, frame.seq)
+                self.commands_received += 1
             elif isinstance(message, proto.ClearFaults):
                 self.model.clear_faults(message.faults)
 

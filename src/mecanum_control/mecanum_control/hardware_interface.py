@@ -2,7 +2,9 @@
 hardware_interface: the serial link to the ESP32 motor board (protocol: doc/esp32_protocol.md).
 
 Subscribes ``motor_efforts`` (std_msgs/Float32MultiArray, PWM duty -1..1, FL FR RL RR)
-and sends them to the board at once, and again at ``command_rate_hz`` as keep-alive.
+and sends them to the board at once; when they stop for 1.5 periods of ``command_rate_hz``,
+the last command (zero once older than ``effort_timeout_s``) is repeated at that rate as
+keep-alive.
 Publishes what the board reports: ``wheel_ticks`` (mecanum_interfaces/WheelTicks),
 ``imu/data_raw`` (sensor_msgs/Imu: angular velocity and linear acceleration with
 covariances from the ``imu_*_stddev_*`` parameters, no orientation; with
@@ -50,6 +52,9 @@ from std_srvs.srv import Trigger
 ZERO_EFFORTS = (0.0, 0.0, 0.0, 0.0)
 #: Wall-clock seconds between warnings while simulated time has not started.
 CLOCK_WAIT_REPORT_S = 2.0
+#: Command periods without motor_efforts after which the keep-alive repeats the command
+#: (so the longest gap between two commands is STREAM_GAP_PERIODS + 1 periods).
+STREAM_GAP_PERIODS = 1.5
 #: Messages only the board sends: receiving them proves the board is alive.
 BOARD_MESSAGES = (proto.EncoderTicks, proto.ImuSample, proto.BoardStatus)
 
@@ -89,7 +94,7 @@ class HardwareInterface(Node):
         self.accel_covariance = [accel_stddev ** 2, 0.0, 0.0, 0.0, accel_stddev ** 2, 0.0,
                                  0.0, 0.0, accel_stddev ** 2]
         self.keepalive_s = 1.0 / command_rate_hz
-        if self.keepalive_s * 1000 >= self.board_command_timeout_ms:
+        if (STREAM_GAP_PERIODS + 1.0) * self.keepalive_s * 1000 >= self.board_command_timeout_ms:
             raise ValueError(f'command_rate_hz {command_rate_hz} is too slow for the board '
                              f'timeout of {self.board_command_timeout_ms} ms')
 
@@ -190,8 +195,20 @@ class HardwareInterface(Node):
         self._send_efforts()
 
     def on_command_timer(self) -> None:
-        """Keep the board's command timeout from firing while the link is up."""
-        if self._now() - self._last_sent_at >= 0.9 * self.keepalive_s:
+        """
+        Keep the board's command timeout from firing while the link is up.
+
+        While motor_efforts arrive (each is sent at once) this stays quiet, so the board
+        gets one command per control period, the one velocity_controller computed for it
+        (the simulator's lockstep waits for it). Once they have been missing for
+        STREAM_GAP_PERIODS periods, it repeats the last command (zero once stale) every
+        period.
+        """
+        now = self._now()
+        since_sent_s = now - self._last_sent_at
+        stream_gone = now - self._efforts_at >= STREAM_GAP_PERIODS * self.keepalive_s
+        if (since_sent_s >= STREAM_GAP_PERIODS * self.keepalive_s
+                or (stream_gone and since_sent_s >= 0.9 * self.keepalive_s)):
             self._send_efforts()
 
     def on_clear_faults(self, _request, response):

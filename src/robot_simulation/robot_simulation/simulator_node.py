@@ -31,10 +31,22 @@ core; the fastest timers of the stack run at 50 Hz, once per clock step),
 robot's wheel_friction_coefficient; lower makes the wheels slip), and the robot
 parameters of motor_params.yaml (including the lidar's mount pose). The simulator
 never uses sim time itself (it makes it).
+
+Lockstep (``lockstep``, false): simulated time waits for the stack, as PX4's SITL
+lockstep does (robot_simulation.lockstep): after each /clock the simulator steps on only
+once the board has received a command (MOTOR_EFFORTS) after it and every process on
+simulated time has answered it on ``/clock_ack`` (std_msgs/Header; mecanum_control
+node_main does it), so a loaded machine slows the run down instead of changing it.
+``real_time_factor`` is then an upper bound (0: as fast as the stack answers). A part
+silent for ``lockstep_timeout_s`` wall seconds (2.0; a killed or frozen process) is
+waited for no longer, and time runs at real time at most until it answers again; no
+board command for ``lockstep_give_up_s`` (60.0) ends the simulator with an error that
+names it (exit code 1).
 """
 
 import math
 from pathlib import Path
+import select
 import sys
 import time
 
@@ -48,13 +60,14 @@ from mecanum_control.parameters import declare_number, declare_robot_config, pos
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from robot_simulation.lockstep import Lockstep, LockstepConfig, LockstepError
 from robot_simulation.sensors import ImuConfig, LidarConfig
 from robot_simulation.simulator import Simulation, SimulatorConfig
 from robot_simulation.world import find_world, load_world
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
-from std_msgs.msg import UInt32
+from std_msgs.msg import Header, UInt32
 from tf2_msgs.msg import TFMessage
 
 
@@ -86,6 +99,11 @@ class SimulatorNode(Node):
             raise ValueError(f'real_time_factor must be >= 0 (0: as fast as possible), got '
                              f'{self.real_time_factor}')
         self.clock_period_s = positive('clock_period_s', number('clock_period_s', 0.02))
+        self.lockstep = None
+        if bool(declare('lockstep', False).value):
+            self.lockstep = Lockstep(LockstepConfig(
+                timeout_s=number('lockstep_timeout_s', 2.0),
+                give_up_s=number('lockstep_give_up_s', 60.0)))
         ground_truth_rate_hz = positive('ground_truth_rate_hz',
                                         number('ground_truth_rate_hz', 50.0))
         lidar = LidarConfig(
@@ -125,6 +143,15 @@ class SimulatorNode(Node):
         self._reported_zone_exits = 0
 
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self._clock_published = False
+        self._commands_seen = 0
+        if self.lockstep is not None:
+            if self.link is None:
+                raise ValueError('lockstep needs the board link (board_port): the board '
+                                 "command is the stack's answer to each /clock")
+            reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+            self.ack_sub = self.create_subscription(Header, '/clock_ack', self.on_clock_ack,
+                                                    reliable)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
         self.movers_pub = self.create_publisher(PoseArray, 'ground_truth/moving_obstacles', 10)
@@ -144,11 +171,18 @@ class SimulatorNode(Node):
             r.x, r.y, r.z, r.w = quaternion_from_yaw(lidar.mount_yaw_rad)
             self.static_tf_pub.publish(TFMessage(transforms=[mount]))
         x, y, yaw = self.world.robot_start
+        mode = '' if self.lockstep is None else (
+            ' (at most), lockstep' if self.real_time_factor else ', lockstep')
         where = f'board on {board_port}' if board_port else 'no board link'
         self.get_logger().info(
             f'Simulating world {self.world.name!r} ({world_path}), robot at ({x:.2f}, '
             f'{y:.2f}, {math.degrees(yaw):.0f} deg), physics {config.physics_rate_hz:.0f} Hz, '
-            f'real-time factor {self.real_time_factor or "max"}, {where}')
+            f'real-time factor {self.real_time_factor or "max"}{mode}, {where}')
+
+    def on_clock_ack(self, msg: Header) -> None:
+        """Take a process's answer to a /clock (lockstep)."""
+        self.lockstep.ack(msg.frame_id, msg.stamp.sec + msg.stamp.nanosec * 1e-9,
+                          time.monotonic())
 
     def advance(self) -> None:
         """One physics step, then everything due at the new simulated time."""
@@ -160,6 +194,7 @@ class SimulatorNode(Node):
         if now + 1e-9 >= self._next['clock']:
             self._next['clock'] += self.clock_period_s
             self.clock_pub.publish(Clock(clock=stamp(now)))
+            self._clock_published = True
         if now + 1e-9 >= self._next['truth']:
             self._next['truth'] += self.truth_period_s
             self.publish_ground_truth(now)
@@ -216,26 +251,79 @@ class SimulatorNode(Node):
         executor = make_executor(self.context)
         executor.add_node(self)
         start = next_spin = time.monotonic()
+        start_sim_s = self.sim.time_s
+        factor = self._pace_factor()
         # Ctrl-C or SIGTERM: the step in progress ends, then KeyboardInterrupt.
         with signals_deferred() as stop:
             while rclpy.ok() and not stop.is_set():
                 self.advance()
+                if self.lockstep is not None and self._clock_published:
+                    self._clock_published = False
+                    self._take_board_commands()   # those before this /clock answer none
+                    self.lockstep.published(self.sim.time_s, time.monotonic())
+                    self.wait_for_stack(executor, stop)
+                    next_spin = time.monotonic() + SPIN_PERIOD_S
                 now = time.monotonic()
                 if now >= next_spin:  # parameter services; spinning every step costs 3x
                     executor.spin_once(timeout_sec=0.0)
                     next_spin = now + SPIN_PERIOD_S
-                if self.real_time_factor > 0.0:
-                    wait = start + self.sim.time_s / self.real_time_factor - now
+                if self._pace_factor() != factor:   # lockstep engaged or a part gone
+                    factor = self._pace_factor()
+                    start, start_sim_s = now, self.sim.time_s
+                if factor > 0.0:
+                    wait = start + (self.sim.time_s - start_sim_s) / factor - now
                     if wait > 0.0:
                         time.sleep(wait)
                     elif wait < -0.25:
-                        # Stalled (load, debugger): do not race to catch up, which would
-                        # flood the control stack with /clock; carry on from here.
-                        start = now - self.sim.time_s / self.real_time_factor
-                        self.get_logger().warning(
-                            f'Simulation fell {-wait:.2f} s behind real_time_factor '
-                            f'{self.real_time_factor}; continuing from now',
-                            throttle_duration_sec=10.0)
+                        # Stalled (load, debugger, lockstep): do not race to catch up,
+                        # which would flood the control stack with /clock; carry on.
+                        start, start_sim_s = now, self.sim.time_s
+                        if self.lockstep is None:
+                            self.get_logger().warning(
+                                f'Simulation fell {-wait:.2f} s behind real_time_factor '
+                                f'{self.real_time_factor}; continuing from now',
+                                throttle_duration_sec=10.0)
+
+    def _pace_factor(self) -> float:
+        """Return the real-time factor to pace at (0: none); at most 1 while unlocked."""
+        if self.lockstep is not None and self.lockstep.free_running:
+            return min(self.real_time_factor, 1.0) if self.real_time_factor > 0.0 else 1.0
+        return self.real_time_factor
+
+    def _take_board_commands(self) -> float:
+        """Tell lockstep about the board commands received since the last call; return now."""
+        now = time.monotonic()
+        if self.link.commands_received != self._commands_seen:
+            self._commands_seen = self.link.commands_received
+            self.lockstep.board_command(now)
+        return now
+
+    def wait_for_stack(self, executor, stop) -> None:
+        """
+        Lockstep: return once the stack has answered the /clock just published.
+
+        Takes the board's commands from the serial line and the /clock_ack messages
+        meanwhile; raises LockstepError when the board has stopped answering for good.
+        """
+        gate, link = self.lockstep, self.link
+        while not stop.is_set():
+            link.receive()
+            now = self._take_board_commands()
+            executor.spin_once(timeout_sec=0.0)
+            missing = gate.waiting_for(now)
+            for event in gate.events():
+                # rclpy: one severity per call site.
+                if 'not answered' in event:
+                    self.get_logger().warning(event)
+                else:
+                    self.get_logger().info(event)
+            if not missing:
+                return
+            if link.port.plugged:
+                # Until the serial line has data, or 1 ms for /clock_ack messages.
+                select.select([link.port.master], [], [], 0.001)
+            else:
+                time.sleep(0.001)
 
     def close(self) -> None:
         """Unplug the simulated board (removes its link)."""
@@ -245,7 +333,16 @@ class SimulatorNode(Node):
 
 def main(args=None) -> int:
     """Run the simulator until Ctrl-C or SIGTERM."""
-    return run_node(SimulatorNode, 'simulator', args, spin=lambda node: node.run())
+    return run_node(SimulatorNode, 'simulator', args, spin=_run)
+
+
+def _run(node: SimulatorNode) -> None:
+    """Run the simulation; a stack that stopped answering ends it with an error."""
+    try:
+        node.run()
+    except LockstepError as error:
+        node.get_logger().fatal(str(error))
+        raise SystemExit(1) from None
 
 
 if __name__ == '__main__':

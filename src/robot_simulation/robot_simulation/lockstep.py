@@ -1,0 +1,177 @@
+"""
+Lockstep: when the simulator may step simulated time on (pure: no rclpy, no I/O).
+
+PX4's SITL lockstep in this workspace's terms. The simulator publishes /clock at the
+start of each period, then steps the physics through the period only once the stack
+has answered that /clock:
+
+- the board: a MOTOR_EFFORTS frame came in on the serial line after the /clock was
+  published (hardware_interface sends velocity_controller's efforts for the period);
+- every participant, i.e. every process of the stack on simulated time: its
+  ``/clock_ack`` (std_msgs/Header: stamp = the /clock it took, frame_id = its name)
+  says it has taken that /clock, so whatever it had queued before it is done.
+
+A stalled stack therefore stalls simulated time instead of losing it. A part silent for
+``timeout_s`` of wall time since the /clock it should answer is *gone* (a killed or
+frozen process, which the launch runner restarts): it holds time back no longer, and
+while any part is gone, or before the board has answered at all (the stack is still
+starting), the simulation runs at real time at most. A gone part that answers again
+takes part again. The board silent for ``give_up_s`` of wall time ends the run with
+:class:`LockstepError`, naming it.
+
+Times: ``sim_s`` simulated seconds, ``wall_s`` seconds of a monotonic wall clock.
+"""
+
+from dataclasses import dataclass
+import math
+from typing import Dict, List, Optional
+
+#: The board's name in messages.
+BOARD = 'the board (MOTOR_EFFORTS from hardware_interface)'
+
+
+class LockstepError(RuntimeError):
+    """The stack stopped answering for good; the message names the silent part."""
+
+
+@dataclass(frozen=True)
+class LockstepConfig:
+    """Wall-clock limits of the lockstep, in seconds."""
+
+    #: A part that has not answered a /clock for this long is gone (no longer awaited).
+    timeout_s: float = 2.0
+    #: The board without a command for this long ends the run.
+    give_up_s: float = 60.0
+
+    def __post_init__(self):
+        """Check the limits: positive and finite, give_up_s not below timeout_s."""
+        for name in ('timeout_s', 'give_up_s'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
+                raise ValueError(f'lockstep {name} must be a finite number > 0 s, got {value!r}')
+        if self.give_up_s < self.timeout_s:
+            raise ValueError(f'lockstep give_up_s ({self.give_up_s} s) must not be below '
+                             f'timeout_s ({self.timeout_s} s)')
+
+
+@dataclass
+class _Part:
+    """What lockstep knows of one answering part."""
+
+    answered_sim_s: float = -math.inf
+    answered_wall_s: float = -math.inf
+    gone: bool = False
+
+
+class Lockstep:
+    """
+    The simulator's gate between the stack's answers and simulated time.
+
+    Call :meth:`published` after each /clock, feed in the answers, step on while
+    :meth:`waiting_for` is empty.
+
+    :meth:`events` returns (and forgets) what happened worth a log line: parts gone and
+    back.
+    """
+
+    def __init__(self, config: LockstepConfig = LockstepConfig()):
+        self.config = config
+        self.board_commands = 0
+        self._board = _Part()
+        self._board_engaged = False
+        self._board_count_at_clock = 0
+        self._participants: Dict[str, _Part] = {}
+        self._clock_sim_s = -math.inf
+        self._clock_wall_s = -math.inf
+        self._events: List[str] = []
+
+    # --- inputs ------------------------------------------------------------------------
+    def published(self, sim_s: float, wall_s: float) -> None:
+        """Note a /clock of sim_s published at wall_s: the stack's answers are now due."""
+        self._clock_sim_s, self._clock_wall_s = sim_s, wall_s
+        self._board_count_at_clock = self.board_commands
+
+    def board_command(self, wall_s: float) -> None:
+        """Note a MOTOR_EFFORTS frame that came in at wall_s."""
+        self.board_commands += 1
+        board = self._board
+        if board.gone:
+            self._events.append(f'lockstep: {BOARD} answers again')
+        elif not self._board_engaged:
+            self._events.append(f'lockstep: {BOARD} answers: simulated time now waits '
+                                'for the stack')
+        self._board_engaged = True
+        board.gone = False
+        board.answered_sim_s, board.answered_wall_s = self._clock_sim_s, wall_s
+
+    def ack(self, name: str, sim_s: float, wall_s: float) -> None:
+        """Note participant name's /clock_ack at wall_s: it took the /clock of sim_s."""
+        part = self._participants.get(name)
+        if part is None:
+            part = self._participants[name] = _Part()
+            self._events.append(f'lockstep: {name} takes part')
+        elif part.gone:
+            self._events.append(f'lockstep: {name} answers again')
+        part.gone = False
+        part.answered_sim_s = max(part.answered_sim_s, sim_s)
+        part.answered_wall_s = wall_s
+
+    # --- outputs -----------------------------------------------------------------------
+    def waiting_for(self, wall_s: float) -> List[str]:
+        """
+        Return the parts that still owe an answer to the last /clock (empty: step on).
+
+        A part that has owed it for timeout_s is declared gone here (and no longer
+        listed). Raises LockstepError when the board has been silent for give_up_s.
+        """
+        waited_s = wall_s - self._clock_wall_s
+        missing = []
+        if self._board_engaged:
+            board = self._board
+            if board.gone:
+                silent_s = wall_s - board.answered_wall_s
+                if silent_s >= self.config.give_up_s:
+                    raise LockstepError(
+                        f'lockstep: {BOARD} has not answered for {silent_s:.0f} s of wall '
+                        f'time (since simulated time {board.answered_sim_s:.2f} s): the '
+                        'stack is not running; ending the simulation')
+            elif self.board_commands == self._board_count_at_clock:
+                if waited_s >= self.config.timeout_s:
+                    board.gone = True
+                    self._events.append(
+                        f'lockstep: {BOARD} has not answered /clock {self._clock_sim_s:.2f} s '
+                        f'for {waited_s:.1f} s: going on without it, at real time at most')
+                else:
+                    missing.append(BOARD)
+        for name, part in self._participants.items():
+            if part.gone or part.answered_sim_s >= self._clock_sim_s - 1e-9:
+                continue
+            if waited_s >= self.config.timeout_s:
+                part.gone = True
+                self._events.append(
+                    f'lockstep: {name} has not answered /clock {self._clock_sim_s:.2f} s for '
+                    f'{waited_s:.1f} s: going on without it, at real time at most')
+            else:
+                missing.append(name)
+        return missing
+
+    @property
+    def free_running(self) -> bool:
+        """Tell whether time runs unlocked: no board answer yet, or a part gone."""
+        return (not self._board_engaged or self._board.gone
+                or any(part.gone for part in self._participants.values()))
+
+    @property
+    def participants(self) -> List[str]:
+        """Return the participants heard so far (gone or not), sorted."""
+        return sorted(self._participants)
+
+    def events(self) -> List[str]:
+        """Return the log-worthy events since the last call, oldest first."""
+        events, self._events = self._events, []
+        return events
+
+    def last_answer_sim_s(self, name: Optional[str] = None) -> float:
+        """Return the last /clock a participant (default: the board) answered, in sim s."""
+        part = self._board if name is None else self._participants[name]
+        return part.answered_sim_s

@@ -1,0 +1,95 @@
+"""Unit tests of the simulator's lockstep gate (robot_simulation.lockstep), no ROS."""
+
+import pytest
+from robot_simulation.lockstep import BOARD, Lockstep, LockstepConfig, LockstepError
+
+
+def started(timeout_s=2.0, give_up_s=10.0) -> Lockstep:
+    """Return a gate whose board has answered once (the stack is up), at wall 0."""
+    gate = Lockstep(LockstepConfig(timeout_s=timeout_s, give_up_s=give_up_s))
+    gate.published(0.0, wall_s=0.0)
+    gate.board_command(wall_s=0.0)
+    gate.events()
+    return gate
+
+
+def test_before_the_board_answers_time_is_not_locked():
+    gate = Lockstep()
+    gate.published(0.02, wall_s=0.0)
+    assert gate.waiting_for(100.0) == []
+    assert gate.free_running
+
+
+def test_each_clock_waits_for_a_board_command_after_it():
+    gate = started()
+    assert not gate.free_running
+    gate.published(0.02, wall_s=1.0)
+    assert gate.waiting_for(1.001) == [BOARD]
+    gate.board_command(wall_s=1.002)
+    assert gate.waiting_for(1.003) == []
+    # A command that came before the next /clock does not answer it.
+    gate.published(0.04, wall_s=1.004)
+    assert gate.waiting_for(1.005) == [BOARD]
+
+
+def test_participants_answer_the_clock_they_took():
+    gate = started()
+    gate.ack('navigation_container', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    gate.board_command(wall_s=1.001)
+    assert gate.waiting_for(1.001) == ['navigation_container']
+    gate.ack('navigation_container', 0.02, wall_s=1.002)
+    assert gate.waiting_for(1.002) == []
+    # An old ack arriving late does not move the participant back.
+    gate.ack('navigation_container', 0.0, wall_s=1.003)
+    assert gate.last_answer_sim_s('navigation_container') == pytest.approx(0.02)
+    assert gate.participants == ['navigation_container']
+
+
+def test_a_silent_part_is_gone_after_the_timeout_and_takes_part_again_when_it_answers():
+    gate = started(timeout_s=2.0)
+    gate.ack('amcl', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    gate.board_command(wall_s=1.0)
+    assert gate.waiting_for(2.9) == ['amcl']
+    assert gate.waiting_for(3.0) == []          # 2 s after the /clock: gone
+    assert gate.free_running
+    assert any('amcl has not answered /clock 0.02 s for 2.0 s' in e for e in gate.events())
+    gate.published(0.04, wall_s=3.1)
+    gate.board_command(wall_s=3.1)
+    assert gate.waiting_for(3.2) == []          # gone: not awaited
+    gate.ack('amcl', 0.04, wall_s=3.3)
+    assert gate.events() == ['lockstep: amcl answers again']
+    assert not gate.free_running
+    gate.published(0.06, wall_s=3.4)
+    gate.board_command(wall_s=3.4)
+    assert gate.waiting_for(3.5) == ['amcl']
+
+
+def test_a_board_silent_past_give_up_ends_the_run_naming_it():
+    gate = started(timeout_s=1.0, give_up_s=5.0)
+    gate.published(0.02, wall_s=0.5)
+    assert gate.waiting_for(1.4) == [BOARD]
+    assert gate.waiting_for(1.5) == []          # gone after 1 s
+    assert gate.free_running
+    assert gate.waiting_for(4.9) == []
+    with pytest.raises(LockstepError, match='hardware_interface.*has not answered for 5 s'):
+        gate.waiting_for(5.0)                   # 5 s since its last command (wall 0)
+
+
+def test_a_board_that_answers_again_is_locked_again():
+    gate = started(timeout_s=1.0)
+    gate.published(0.02, wall_s=0.0)
+    gate.waiting_for(1.0)
+    assert gate.free_running
+    gate.board_command(wall_s=1.5)
+    assert 'answers again' in gate.events()[-1]
+    gate.published(0.04, wall_s=1.6)
+    assert gate.waiting_for(1.7) == [BOARD]
+
+
+@pytest.mark.parametrize('timeout_s, give_up_s', [
+    (0.0, 1.0), (-1.0, 1.0), (float('nan'), 1.0), (2.0, 1.0), (1.0, float('inf'))])
+def test_bad_limits_are_refused(timeout_s, give_up_s):
+    with pytest.raises(ValueError, match='lockstep'):
+        LockstepConfig(timeout_s=timeout_s, give_up_s=give_up_s)
