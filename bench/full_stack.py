@@ -3,7 +3,10 @@
 Benchmark: the whole simulated robot's real-time factor and its CPU and memory per node.
 
 Runs a scenario (default: the demo's apartment tour, scenarios/apartment_tour.yaml)
-with the scenario runner, at each requested real_time_factor, in each mode: standalone
+with the scenario runner on each clock: ``wall`` (the simulator paced by the wall
+clock at each ``--rtf``, as the demo runs) and ``lockstep`` (simulated time waits for
+the stack, robot_simulation.lockstep, at each ``--lockstep-rtf``: ``max`` = as fast as
+the stack answers), and in each mode: standalone
 (every node its own process: the table is per node) and composed (the scenario
 runner's default: the control chain and navigation in one container process each,
 mecanum_bringup config/composition.yaml: the table is per process). While the steps run
@@ -13,8 +16,9 @@ seconds), the verdict, and the table: CPU (% of one core, mean over the steps), 
 RSS (MiB). The machine's core count bounds what the sum of CPU can be: a sum near
 100 % x cores means the stack is CPU bound.
 
-Run:  ./mecanum exec python bench/full_stack.py [--scenario FILE] [--rtf 1 2 5]
-      [--modes standalone composed] [--json FILE] [--out DIR]
+Run:  ./mecanum exec python bench/full_stack.py [--scenario FILE] [--clocks wall lockstep]
+      [--rtf 1 2] [--lockstep-rtf max 3] [--modes standalone composed] [--json FILE]
+      [--out DIR]
 """
 
 import argparse
@@ -27,7 +31,7 @@ import threading
 import time
 
 from mecanum_bringup.scenario import load_scenario
-from mecanum_bringup.scenario_runner import run_scenario, RunOptions
+from mecanum_bringup.scenario_runner import parse_real_time_factor, run_scenario, RunOptions
 
 REPO = Path(__file__).resolve().parents[1]
 TICKS_PER_S = os.sysconf('SC_CLK_TCK')
@@ -99,9 +103,14 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--scenario', type=Path,
                         default=REPO / 'src/mecanum_bringup/scenarios/apartment_tour.yaml')
-    parser.add_argument('--rtf', type=float, nargs='+', default=[1.0])
+    parser.add_argument('--clocks', nargs='+', choices=['wall', 'lockstep'],
+                        default=['wall', 'lockstep'])
+    parser.add_argument('--rtf', type=parse_real_time_factor, nargs='+', default=[1.0],
+                        help='real-time factors on the wall clock')
+    parser.add_argument('--lockstep-rtf', type=parse_real_time_factor, nargs='+',
+                        default=[0.0], help="upper bounds in lockstep ('max': none)")
     parser.add_argument('--modes', nargs='+', choices=['standalone', 'composed'],
-                        default=['standalone', 'composed'])
+                        default=['composed'])
     parser.add_argument('--json', type=Path)
     parser.add_argument('--out', type=Path,
                         help="keep each run's report folder under OUT/MODE_rtfX "
@@ -111,17 +120,21 @@ def main() -> int:
     results = []
     print(f'full stack: scenario {scenario.name} ({len(scenario.steps)} steps), '
           f'{os.cpu_count()} cores')
-    runs = [(mode, rtf) for rtf in options.rtf for mode in options.modes]
-    for mode, rtf in runs:
+    runs = [(clock, mode, rtf) for clock in options.clocks
+            for rtf in (options.rtf if clock == 'wall' else options.lockstep_rtf)
+            for mode in options.modes]
+    for clock, mode, rtf in runs:
         sampler = Sampler()
         with tempfile.TemporaryDirectory() as directory:
-            out = options.out / f'{mode}_rtf{rtf:g}' if options.out else Path(directory)
+            out = (options.out / f'{clock}_{mode}_rtf{rtf or "max"}' if options.out
+                   else Path(directory))
             result = run_scenario(scenario, RunOptions(
-                out, real_time_factor=rtf, on_system=sampler, compose=mode == 'composed'))
+                out, real_time_factor=rtf, on_system=sampler, compose=mode == 'composed',
+                lockstep=clock == 'lockstep'))
         wall = max(sampler.wall[1] - sampler.wall[0], 1e-9)
         sim = result.sim_time_s or 0.0
         rows = sampler.rows()
-        results.append({'mode': mode, 'requested_rtf': rtf,
+        results.append({'clock': clock, 'mode': mode, 'requested_rtf': rtf or 'max',
                         'achieved_rtf': sim / wall if wall else None,
                         'sim_s': sim, 'wall_s': wall,
                         'verdict': result.verdict.verdict if result.verdict else None,
@@ -129,7 +142,8 @@ def main() -> int:
                         'processes': [{'process': n, 'cpu_percent': c, 'peak_rss_mib': m}
                                       for n, c, m in rows]})
         failure = f' ({result.first_failure})' if result.first_failure else ''
-        print(f'\n{mode}, requested real-time factor {rtf:g}: achieved {sim / wall:.2f} '
+        print(f'\n{clock} clock, {mode}, requested real-time factor {rtf or "max"}: '
+              f'achieved {sim / wall:.2f} '
               f'({sim:.1f} s simulated in {wall:.1f} s wall), verdict '
               f'{results[-1]["verdict"]}{failure}')
         unit = 'node' if mode == 'standalone' else 'process'
@@ -139,13 +153,14 @@ def main() -> int:
             print(f'{name:<24} {cpu:>16.1f} {rss:>13.1f}')
         print(f'{"total":<24} {sum(r[1] for r in rows):>16.1f} '
               f'{sum(r[2] for r in rows):>13.1f}')
-    print(f'\n{"mode":<11} {"requested":>9} {"achieved":>8} {"verdict":>8} '
+    print(f'\n{"clock":<9} {"mode":<11} {"requested":>9} {"achieved":>8} {"verdict":>8} '
           f'{"CPU % of a core":>16} {"RSS MiB":>8} {"CPU per sim s":>14}')
     for run in results:
         cpu = sum(p['cpu_percent'] for p in run['processes'])
         rss = sum(p['peak_rss_mib'] for p in run['processes'])
         per_sim = cpu / 100.0 / run['achieved_rtf'] if run['achieved_rtf'] else float('nan')
-        print(f'{run["mode"]:<11} {run["requested_rtf"]:>9g} {run["achieved_rtf"]:>8.2f} '
+        print(f'{run["clock"]:<9} {run["mode"]:<11} {str(run["requested_rtf"]):>9} '
+              f'{run["achieved_rtf"]:>8.2f} '
               f'{str(run["verdict"]):>8} {cpu:>16.1f} {rss:>8.0f} {per_sim:>12.2f} s')
     if options.json:
         options.json.write_text(json.dumps(results, indent=1))

@@ -41,10 +41,16 @@ SUITE = sorted(path for path in SCENARIOS.glob('*.yaml') if path.stem not in NOT
 
 
 def run_scenarios(paths, out: Path, timeout_s: float):
-    """Run run_scenarios on paths; return the completed process (output captured)."""
+    """
+    Run run_scenarios on paths; return the completed process (output captured).
+
+    In lockstep (run_scenarios' default) at 'max': simulated time waits for the stack,
+    so the verdicts do not depend on how fast this machine is or how busy.
+    """
     return subprocess.run(
         [sys.executable, '-m', 'mecanum_bringup.scenario_runner', *map(str, paths),
-         '--out', str(out), '--junit', str(out / 'junit.xml'), '--quiet'],
+         '--out', str(out), '--junit', str(out / 'junit.xml'), '--quiet',
+         '--real-time-factor', 'max'],
         capture_output=True, text=True, timeout=timeout_s,
         env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
 

@@ -3,7 +3,10 @@ demo: the main job. The simulated robot tours the apartment and reports what it 
 
 Usage: ``make demo`` (pip setup: ``./mecanum run mecanum_bringup demo``; apt ROS:
 ``ros2 run mecanum_bringup demo``), options ``--out DIR``, ``--real-time-factor X``,
-``--foxglove`` (watch it live in Foxglove on ws://localhost:8765), ``--no-record``.
+``--lockstep`` (simulated time waits for the stack; then ``--real-time-factor max``
+runs as fast as it answers; by default the demo runs on the wall clock, which checks
+that the stack keeps up in real time), ``--foxglove`` (watch it live in Foxglove on
+ws://localhost:8765), ``--no-record``.
 
 It brings up the whole robot (mecanum_bringup robot.launch: the simulator with the
 apartment and its walking person, the control stack on the simulated ESP32, the EKF,
@@ -26,14 +29,14 @@ recording of what happened so far. Exit code 0 when the tour passed.
 import argparse
 from datetime import datetime
 import json
-import math
 from pathlib import Path
 import signal
 import sys
 from typing import Optional, Sequence
 
 from mecanum_bringup.scenario import load_scenario, ScenarioError
-from mecanum_bringup.scenario_runner import INTERRUPTED, run_scenario, RunOptions
+from mecanum_bringup.scenario_runner import (
+    INTERRUPTED, parse_real_time_factor, run_scenario, RunOptions)
 
 TOUR_FILE = 'apartment_tour.yaml'
 
@@ -64,8 +67,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog='demo', description='The simulated mecanum robot '
                                      'tours the apartment and writes a report.')
     parser.add_argument('--out', help='report folder (default reports/demo_<date>_<time>)')
-    parser.add_argument('--real-time-factor', type=float, default=None,
-                        help='simulated seconds per wall second (default: the scenario, 1)')
+    parser.add_argument('--real-time-factor', type=parse_real_time_factor, default=None,
+                        help='simulated seconds per wall second (default: the scenario, 1); '
+                        "'max' with --lockstep")
+    parser.add_argument('--lockstep', action='store_true',
+                        help='simulated time waits for the stack (as run_scenarios does)')
     parser.add_argument('--foxglove', action='store_true',
                         help='serve the running system to Foxglove on ws://localhost:8765')
     parser.add_argument('--no-record', action='store_true', help='do not record a bag')
@@ -73,9 +79,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--no-compose', action='store_true',
                         help='run every node in its own process (default: composed)')
     options = parser.parse_args(argv)
-    if options.real_time_factor is not None and not (
-            math.isfinite(options.real_time_factor) and options.real_time_factor > 0.0):
-        parser.error('--real-time-factor must be a positive number')
+    if options.real_time_factor == 0.0 and not options.lockstep:
+        parser.error('--real-time-factor max needs --lockstep')
     try:
         scenario = load_scenario(options.scenario or tour_file())
     except ScenarioError as error:
@@ -96,7 +101,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     result = run_scenario(scenario, RunOptions(
         out, options.real_time_factor, record=not options.no_record,
         foxglove=options.foxglove, progress=lambda text: print(text, flush=True),
-        compose=not options.no_compose))
+        compose=not options.no_compose, lockstep=options.lockstep))
     run_dir = out / scenario.name
     summary = json.loads((run_dir / 'summary.json').read_text())
     print()

@@ -4,8 +4,8 @@ run_scenarios: run scenario files with the whole simulated robot and judge them.
 Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``)::
 
     ./mecanum run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
-        [--junit FILE] [--real-time-factor X] [--record] [--foxglove] [--no-compose]
-        [--quiet]
+        [--junit FILE] [--real-time-factor X|max] [--no-lockstep] [--record] [--foxglove]
+        [--no-compose] [--quiet]
 
 PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario` for the
 format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
@@ -28,6 +28,12 @@ driven path, ground truth, collisions), ``truth.csv`` and ``estimate.csv`` (t_s,
 y_m, yaw_rad in the map frame), ``system.log`` (every node's output) and, with
 ``--record``, ``bag/`` (an MCAP rosbag2 of every topic). The table of verdicts is
 printed at the end; ``--junit`` writes it as JUnit XML for CI.
+
+Simulated time runs in lockstep with the stack (robot_simulation.lockstep): the
+simulator steps on only when the stack has answered each /clock, so a loaded machine
+makes a run slower, not different. ``--real-time-factor`` is then an upper bound and
+``max`` runs as fast as the stack answers; ``--no-lockstep`` runs on the wall clock (as
+the demo does: that checks that the stack keeps up in real time).
 
 Exit code: 0 when every scenario got the verdict it expects (a scenario with
 ``expect: fail`` must fail), 1 otherwise, 2 when a file is invalid or nothing was found.
@@ -87,6 +93,8 @@ class RunOptions:
     """How to run: output folder, speed override, recording, live view, progress."""
 
     out_dir: Path
+    #: Overrides the scenarios' real_time_factor; 0 = 'max' (with lockstep: as fast as
+    #: the stack answers).
     real_time_factor: Optional[float] = None
     record: bool = False
     foxglove: bool = False
@@ -94,12 +102,34 @@ class RunOptions:
     status_period_s: float = 10.0
     #: Group the nodes into containers (launch runner --compose).
     compose: bool = True
+    #: Simulated time waits for the stack (robot_simulation.lockstep).
+    lockstep: bool = True
     #: Called with the SystemProcess once it is up, and with None when the steps end
     #: (for benchmarks that watch the node processes).
     on_system: Optional[Callable[[Optional['SystemProcess']], None]] = None
 
 
 # --- the files of a run --------------------------------------------------------------
+
+def real_time_factor(scenario: Scenario, options: RunOptions) -> float:
+    """Return the run's real-time factor: the override, else the scenario's (0 = max)."""
+    if options.real_time_factor is not None:
+        return options.real_time_factor
+    return scenario.real_time_factor
+
+
+def parse_real_time_factor(text: str) -> float:
+    """Parse --real-time-factor: a number > 0, or 'max' (returned as 0)."""
+    if text.strip().lower() == 'max':
+        return 0.0
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"must be a number > 0 or 'max', got {text!r}")
+    return value
+
 
 def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> Path:
     """
@@ -125,11 +155,12 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
     zone_file = run_dir / 'zone.yaml'
     zone_file.write_text(zone_file_text(scenario.authorised_zone), encoding='utf-8')
     x, y, yaw = scenario.initial_pose
-    rtf = options.real_time_factor or scenario.real_time_factor
+    rtf = real_time_factor(scenario, options)
     args = {'world': str(world_file), 'map': scenario.map_name,
             'initial_pose_x': x, 'initial_pose_y': y, 'initial_pose_yaw': yaw,
             'initial_pose_std_xy': 0.05, 'initial_pose_std_yaw': 0.05,
-            'real_time_factor': rtf, 'seed': scenario.seed,
+            'real_time_factor': rtf, 'lockstep': str(options.lockstep).lower(),
+            'seed': scenario.seed,
             'floor_friction_coefficient': scenario.floor_friction_coefficient,
             'nav_params_file': str(nav_params), 'zone_file': str(zone_file),
             'board_port': str(run_dir / 'ttySIM'),
@@ -301,7 +332,8 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     result = ScenarioResult.from_run(verdict, record, wall)
     summary = summary_json(scenario, record, verdict, {
         'wall_time_s': round(wall, 1),
-        'real_time_factor': options.real_time_factor or scenario.real_time_factor})
+        'real_time_factor': real_time_factor(scenario, options) or 'max',
+        'lockstep': options.lockstep})
     (run_dir / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n',
                                           encoding='utf-8')
     for name, track in (('truth', record.truth), ('estimate', record.estimate)):
@@ -506,8 +538,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--out', default='scenario_results',
                         help='report folder (one subfolder per scenario)')
     parser.add_argument('--junit', help='write the verdicts as JUnit XML to this file')
-    parser.add_argument('--real-time-factor', type=float,
-                        help="override every scenario's real_time_factor")
+    parser.add_argument('--real-time-factor', type=parse_real_time_factor,
+                        help="override every scenario's real_time_factor: a number, or "
+                        "'max' (as fast as the stack answers; needs lockstep)")
+    parser.add_argument('--no-lockstep', action='store_true',
+                        help='simulated time runs on the wall clock instead of waiting for '
+                        'the stack (the default is lockstep)')
     parser.add_argument('--record', action='store_true',
                         help='record every topic to DIR/NAME/bag (MCAP rosbag2)')
     parser.add_argument('--foxglove', action='store_true',
@@ -516,9 +552,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='run every node in its own process (default: composed)')
     parser.add_argument('--quiet', action='store_true', help='print only the table')
     options = parser.parse_args(argv)
-    if options.real_time_factor is not None and not (
-            math.isfinite(options.real_time_factor) and options.real_time_factor > 0.0):
-        parser.error('--real-time-factor must be a positive number')
+    if options.real_time_factor == 0.0 and options.no_lockstep:
+        parser.error('--real-time-factor max needs lockstep (drop --no-lockstep)')
     scenarios, results = [], []
     try:
         files = [file for path in options.paths for file in find_scenarios(path)]
@@ -538,7 +573,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             results.append(ScenarioResult(Path(file).stem, 'pass', error=str(error)))
     say = (lambda text: None) if options.quiet else (lambda text: print(text, flush=True))
     run_options = RunOptions(Path(options.out), options.real_time_factor, options.record,
-                             options.foxglove, say, compose=not options.no_compose)
+                             options.foxglove, say, compose=not options.no_compose,
+                             lockstep=not options.no_lockstep)
 
     def on_sigint(_signum, _frame) -> None:
         INTERRUPTED.set()
