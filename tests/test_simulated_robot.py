@@ -2,9 +2,10 @@
 Integration: the simulated robot with its description and EKF (mecanum_bringup simulation).
 
 simulation.launch.yaml starts the physics simulator, the control stack, the robot
-description and the EKF as separate processes on the simulator's /clock, in the test's
-own ROS domain. On a slippery floor (friction 0.1) the wheels slip and wheel odometry
-loses its heading; the EKF, which takes the yaw rate from the IMU, must keep it.
+description and the EKF as separate processes on the simulator's /clock, in lockstep
+(simulated time waits for the stack), in the test's own ROS domain. On a slippery floor
+(friction 0.1) the wheels slip and wheel odometry loses its heading; the EKF, which
+takes the yaw rate from the IMU, must keep it.
 """
 
 import math
@@ -46,7 +47,7 @@ def stamp_s(msg):
 def test_frames_are_complete_and_the_ekf_keeps_the_heading_when_wheels_slip(
         start_system, test_node, tmp_path):
     system = start_system('mecanum_bringup', 'simulation.launch.yaml',
-                          'floor_friction_coefficient:=0.1',
+                          'floor_friction_coefficient:=0.1', 'lockstep:=true',
                           f'board_port:={tmp_path / "ttySIM"}',
                           f'estop_latch_file:={tmp_path / "estop"}')
     static = []

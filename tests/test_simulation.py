@@ -4,7 +4,8 @@ Integration: the physics simulator driving the unchanged control stack at wheel 
 simulation.launch.yaml starts simulator_node (physics, lidar, /clock, a simulated
 ESP32 on a pty), hardware_interface, encoder_reader, velocity_controller,
 motor_controller and robot_controller as separate processes in the test's own ROS
-domain, on the simulator's /clock. Ground truth comes from ground_truth/odom.
+domain, on the simulator's /clock, in lockstep (simulated time waits for the stack).
+Ground truth comes from ground_truth/odom.
 """
 
 import math
@@ -33,6 +34,7 @@ WALL_AHEAD_M = 3.0 - load_robot_config(default_config_path()).lidar_mount_x_m
 def simulation(start_system, test_node, tmp_path):
     """Start the apartment simulation; return (system, test_node)."""
     system = start_system('robot_simulation', 'simulation.launch.yaml', 'world:=apartment',
+                          'lockstep:=true',
                           f'board_port:={tmp_path / "ttySIM"}',
                           f'estop_latch_file:={tmp_path / "estop"}')
     system.wait_for_line(r'\[hardware_interface\].*Connected to the board')

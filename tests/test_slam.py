@@ -3,11 +3,12 @@ Integration: online SLAM maps the apartment while the simulated robot explores i
 
 The full simulated robot (mecanum_bringup simulation.launch.yaml: simulator, control
 stack on the simulated ESP32, description, EKF) and slam.launch.yaml run in their own
-processes on simulated time. The test drives a scripted exploration through every room
-and back (a waypoint follower on the simulator's ground truth, as a person with a remote
-would), then checks what SLAM published: the map's walls against the world's
-ground-truth map, SLAM's pose against the ground truth, and that map_saver_cli saves the
-map in the Nav2 format.
+processes on simulated time, in lockstep (simulated time waits for every node, so a
+busy machine slows the test down instead of changing what SLAM sees). The test drives a
+scripted exploration through every room and back (a waypoint follower on the simulator's
+ground truth, as a person with a remote would), then checks what SLAM published: the
+map's walls against the world's ground-truth map, SLAM's pose against the ground truth,
+and that map_saver_cli saves the map in the Nav2 format.
 
 SLAM's map frame starts at the robot's start pose (map == odom at the first scan); the
 world frame is shifted by the start pose to compare.
@@ -62,7 +63,8 @@ def write_launch(directory: Path) -> Path:
             'file': '$(find-pkg-share mecanum_bringup)/launch/simulation.launch.yaml',
             'arg': [{'name': 'world', 'value': str(write_world(directory))},
                     {'name': 'board_port', 'value': str(directory / 'ttySIM')},
-                    {'name': 'estop_latch_file', 'value': str(directory / 'estop')}]}},
+                    {'name': 'estop_latch_file', 'value': str(directory / 'estop')},
+                    {'name': 'lockstep', 'value': 'true'}]}},
         {'include': {
             'file': '$(find-pkg-share mecanum_navigation)/launch/slam.launch.yaml',
             'arg': [{'name': 'use_sim_time', 'value': 'true'}]}},

@@ -72,6 +72,9 @@ import yaml
 RUN_MARKER = 'MECANUM_SCENARIO_RUN'
 #: Output lines that say the system is ready for the first step, and how long to wait.
 READY_PATTERNS = (('[ekf_filter_node]', 'EKF started'),
+                  # Both of its sensors fused (the IMU waits for its mount on /tf_static).
+                  ('[ekf_filter_node]', 'odom0 odom: first message taken in'),
+                  ('[ekf_filter_node]', 'imu0 imu/data_raw: first message taken in'),
                   ('[navigator]', 'ready for goals'),
                   ('[hardware_interface]', 'IMU calibrated at rest'))
 READY_TIMEOUT_S = 120.0
