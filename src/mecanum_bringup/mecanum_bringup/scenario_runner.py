@@ -5,7 +5,7 @@ Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``):
 
     ./mecanum run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
         [--junit FILE] [--real-time-factor X|max] [--no-lockstep] [--record] [--foxglove]
-        [--no-compose] [--quiet]
+        [--no-compose] [--jobs N] [--quiet]
 
 PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario` for the
 format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
@@ -35,6 +35,10 @@ makes a run slower, not different. ``--real-time-factor`` is then an upper bound
 ``max`` runs as fast as the stack answers; ``--no-lockstep`` runs on the wall clock (as
 the demo does: that checks that the stack keeps up in real time).
 
+``--jobs N`` runs up to N scenarios at once, each in a worker process of its own with its
+own ROS domain, processes and report folder, exactly as one at a time (in lockstep the
+verdicts do not depend on the other runs' load); the table keeps the files' order.
+
 Exit code: 0 when every scenario got the verdict it expects (a scenario with
 ``expect: fail`` must fail), 1 otherwise, 2 when a file is invalid or nothing was found.
 Ctrl-C stops the running scenario cleanly (its report and recording are still written)
@@ -42,9 +46,11 @@ and skips the others.
 """
 
 import argparse
-from dataclasses import dataclass
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
 import json
 import math
+import multiprocessing
 import os
 from pathlib import Path
 import re
@@ -532,6 +538,65 @@ def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
 
 # --- the command line --------------------------------------------------------------------
 
+def _worker_init() -> None:
+    """Set up a --jobs worker: Ctrl-C (sent to the whole group) ends its run cleanly."""
+    signal.signal(signal.SIGINT, lambda _signum, _frame: INTERRUPTED.set())
+
+
+def _run_in_worker(scenario: Scenario, options: RunOptions, quiet: bool) -> ScenarioResult:
+    """Run one scenario in a --jobs worker process (progress printed unless quiet)."""
+    say = None if quiet else (lambda text: print(text, flush=True))
+    return run_scenario(scenario, replace(options, progress=say))
+
+
+def _run_all(scenarios: Sequence[Scenario], options: RunOptions, jobs: int, quiet: bool,
+             say: Progress) -> List[ScenarioResult]:
+    """Run the scenarios one at a time, or jobs at once in worker processes."""
+    results: List[ScenarioResult] = []
+
+    def report(index: int, scenario: Scenario, result: ScenarioResult) -> None:
+        say(f'[{index}/{len(scenarios)}] {scenario.name}: {result.status} '
+            f'(verdict {result.verdict.verdict if result.verdict else "none"}, '
+            f'expected {scenario.expect}) in {result.wall_time_s or 0:.0f} s; report in '
+            f'{options.out_dir / scenario.name}')
+
+    if jobs <= 1:
+        for index, scenario in enumerate(scenarios, start=1):
+            if INTERRUPTED.is_set():
+                results.append(ScenarioResult(scenario.name, scenario.expect,
+                                              error='not run (interrupted)'))
+                continue
+            say(f'[{index}/{len(scenarios)}] {scenario.name}: {scenario.description}')
+            results.append(run_scenario(scenario, options))
+            report(index, scenario, results[-1])
+        return results
+    say(f'running {len(scenarios)} scenarios, {jobs} at once')
+    # spawn: a fresh interpreter per worker (no forked rclpy or reader threads).
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context('spawn'),
+                             initializer=_worker_init) as pool:
+        worker_options = replace(options, progress=None, on_system=None)
+        futures = [pool.submit(_run_in_worker, scenario, worker_options, quiet)
+                   for scenario in scenarios]
+        for index, (scenario, future) in enumerate(zip(scenarios, futures), start=1):
+            while not future.done():
+                if INTERRUPTED.is_set():
+                    for pending in futures:
+                        pending.cancel()
+                time.sleep(0.2)
+            if future.cancelled():
+                result = ScenarioResult(scenario.name, scenario.expect,
+                                        error='not run (interrupted)')
+            elif future.exception() is not None:
+                error = future.exception()
+                result = ScenarioResult(scenario.name, scenario.expect,
+                                        error=f'worker error: {type(error).__name__}: {error}')
+            else:
+                result = future.result()
+            results.append(result)
+            report(index, scenario, result)
+    return results
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Command line entry point; returns the exit code (see the module docstring)."""
     parser = argparse.ArgumentParser(
@@ -553,8 +618,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='serve the running system to Foxglove (ws://localhost:8765)')
     parser.add_argument('--no-compose', action='store_true',
                         help='run every node in its own process (default: composed)')
+    parser.add_argument('--jobs', type=int, default=1,
+                        help='run up to this many scenarios at once (default 1)')
     parser.add_argument('--quiet', action='store_true', help='print only the table')
     options = parser.parse_args(argv)
+    if options.jobs < 1:
+        parser.error(f'--jobs must be at least 1, got {options.jobs}')
     if options.real_time_factor == 0.0 and options.no_lockstep:
         parser.error('--real-time-factor max needs lockstep (drop --no-lockstep)')
     scenarios, results = [], []
@@ -583,18 +652,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         INTERRUPTED.set()
     previous = signal.signal(signal.SIGINT, on_sigint)
     try:
-        for index, scenario in enumerate(scenarios, start=1):
-            if INTERRUPTED.is_set():
-                results.append(ScenarioResult(scenario.name, scenario.expect,
-                                              error='not run (interrupted)'))
-                continue
-            say(f'[{index}/{len(scenarios)}] {scenario.name}: {scenario.description}')
-            result = run_scenario(scenario, run_options)
-            results.append(result)
-            say(f'[{index}/{len(scenarios)}] {scenario.name}: {result.status} '
-                f'(verdict {result.verdict.verdict if result.verdict else "none"}, '
-                f'expected {scenario.expect}) in {result.wall_time_s:.0f} s; report in '
-                f'{run_options.out_dir / scenario.name}')
+        results += _run_all(scenarios, run_options, options.jobs, options.quiet, say)
     finally:
         signal.signal(signal.SIGINT, previous)
     print(results_table(results))
