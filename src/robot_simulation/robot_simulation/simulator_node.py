@@ -61,7 +61,7 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from robot_simulation.lockstep import Lockstep, LockstepConfig, LockstepError
+from robot_simulation.lockstep import BOARD, Lockstep, LockstepConfig, LockstepError
 from robot_simulation.sensors import ImuConfig, LidarConfig
 from robot_simulation.simulator import Simulation, SimulatorConfig
 from robot_simulation.world import find_world, load_world
@@ -74,6 +74,10 @@ from tf2_msgs.msg import TFMessage
 #: Wall seconds between two services of ROS callbacks (parameter services) in the
 #: stepping loop: spinning costs a wake-up, and nothing here is latency-critical.
 SPIN_PERIOD_S = 0.05
+#: Lockstep: longest wall time between two looks at the gate's timeouts (s).
+GATE_CHECK_S = 0.005
+#: Lockstep: longest wait for /clock_ack messages before a look at the serial line (s).
+ACK_WAIT_S = 0.001
 
 
 def stamp(time_s: float) -> Time:
@@ -309,7 +313,6 @@ class SimulatorNode(Node):
         while not stop.is_set():
             link.receive()
             now = self._take_board_commands()
-            executor.spin_once(timeout_sec=0.0)
             missing = gate.waiting_for(now)
             for event in gate.events():
                 # rclpy: one severity per call site.
@@ -319,11 +322,15 @@ class SimulatorNode(Node):
                     self.get_logger().info(event)
             if not missing:
                 return
-            if link.port.plugged:
-                # Until the serial line has data, or 1 ms for /clock_ack messages.
-                select.select([link.port.master], [], [], 0.001)
+            # Block on what is missing instead of polling both: the processes answer
+            # /clock as soon as they take it, the board's command comes after the control
+            # chain has run, so most of the wait is for the serial line alone.
+            if missing == [BOARD] and link.port.plugged:
+                select.select([link.port.master], [], [], GATE_CHECK_S)
+                executor.spin_once(timeout_sec=0.0)  # what else came (acks of parts back)
             else:
-                time.sleep(0.001)
+                executor.spin_once(
+                    timeout_sec=ACK_WAIT_S if BOARD in missing else GATE_CHECK_S)
 
     def close(self) -> None:
         """Unplug the simulated board (removes its link)."""
