@@ -136,24 +136,21 @@ class Lockstep:
                         f'time (since simulated time {board.answered_sim_s:.2f} s): the '
                         'stack is not running; ending the simulation')
             elif self.board_commands == self._board_count_at_clock:
-                if waited_s >= self.config.timeout_s:
-                    board.gone = True
-                    self._events.append(
-                        f'lockstep: {BOARD} has not answered /clock {self._clock_sim_s:.2f} s '
-                        f'for {waited_s:.1f} s: going on without it, at real time at most')
-                else:
-                    missing.append(BOARD)
+                self._owing(BOARD, board, waited_s, missing)
         for name, part in self._participants.items():
-            if part.gone or part.answered_sim_s >= self._clock_sim_s - 1e-9:
-                continue
-            if waited_s >= self.config.timeout_s:
-                part.gone = True
-                self._events.append(
-                    f'lockstep: {name} has not answered /clock {self._clock_sim_s:.2f} s for '
-                    f'{waited_s:.1f} s: going on without it, at real time at most')
-            else:
-                missing.append(name)
+            if not part.gone and part.answered_sim_s < self._clock_sim_s - 1e-9:
+                self._owing(name, part, waited_s, missing)
         return missing
+
+    def _owing(self, name: str, part: _Part, waited_s: float, missing: List[str]) -> None:
+        """Take a part that owes the last /clock: gone after timeout_s, else awaited."""
+        if waited_s >= self.config.timeout_s:
+            part.gone = True
+            self._events.append(
+                f'lockstep: {name} has not answered /clock {self._clock_sim_s:.2f} s for '
+                f'{waited_s:.1f} s: going on without it, at real time at most')
+        else:
+            missing.append(name)
 
     @property
     def free_running(self) -> bool:
