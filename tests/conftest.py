@@ -33,43 +33,55 @@ def processes_with_marker(marker: str) -> list:
     return processes_with_variable(RUN_MARKER, marker)
 
 
-class RunningSystem:
-    """A launch_runner process running a system description, with its output captured."""
+class OutputProcess:
+    """A process whose output lines (stdout and stderr) are kept with their arrival times."""
 
-    def __init__(self, launch_args: list, env: dict):
-        self.marker = uuid.uuid4().hex
-        self.lines = []
+    def __init__(self, command: list, env: dict, cwd=None):
+        self.lines = []  # (monotonic arrival time s, line)
         self._lock = threading.Lock()
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'mecanum_bringup.launch_runner', *launch_args],
-            env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+            command, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            text=True, start_new_session=True)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
     def _read(self):
         for line in self.process.stdout:
             with self._lock:
-                self.lines.append(line.rstrip('\n'))
+                self.lines.append((time.monotonic(), line.rstrip('\n')))
 
     def output(self) -> str:
         with self._lock:
-            return '\n'.join(self.lines)
+            return '\n'.join(line for _, line in self.lines)
 
-    def wait_for_line(self, pattern: str, timeout: float = 20.0) -> re.Match:
-        """Wait until an output line matches pattern; return the match."""
+    def wait_for_line_at(self, pattern: str, timeout: float = 20.0) -> tuple:
+        """Wait until an output line matches pattern; return (its arrival time, the match)."""
         regex = re.compile(pattern)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
+            exited = self.process.poll() is not None
             with self._lock:
-                for line in self.lines:
+                for when, line in self.lines:
                     match = regex.search(line)
                     if match:
-                        return match
-            if self.process.poll() is not None:
+                        return when, match
+            if exited and not self._reader.is_alive():  # every line read, none matched
                 break
             time.sleep(0.05)
         raise AssertionError(f'no output line matched {pattern!r}; output:\n{self.output()}')
+
+    def wait_for_line(self, pattern: str, timeout: float = 20.0) -> re.Match:
+        """Wait until an output line matches pattern; return the match."""
+        return self.wait_for_line_at(pattern, timeout)[1]
+
+
+class RunningSystem(OutputProcess):
+    """A launch_runner process running a system description, with its output captured."""
+
+    def __init__(self, launch_args: list, env: dict):
+        self.marker = uuid.uuid4().hex
+        super().__init__([sys.executable, '-m', 'mecanum_bringup.launch_runner', *launch_args],
+                         dict(env, **{RUN_MARKER: self.marker}))
 
     def node_pid(self, label: str, start: int = 1) -> int:
         """PID of a node from the runner's 'started/restarted LABEL (... pid N)' lines."""

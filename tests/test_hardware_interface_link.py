@@ -22,6 +22,7 @@ import pytest
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
+from tests.conftest import OutputProcess
 
 pytestmark = pytest.mark.integration
 REPO = Path(__file__).resolve().parents[1]
@@ -94,33 +95,26 @@ class ScriptedBoard:
         os.close(self._slave)
 
 
-class HostProcess:
+class HostProcess(OutputProcess):
     """hardware_interface started with ./mecanum run, its output collected."""
 
     def __init__(self, env, link: Path, *params: str):
         extra = [arg for param in params for arg in ('-p', param)]
-        self.process = subprocess.Popen(
+        super().__init__(
             ['./mecanum', 'run', 'mecanum_control', 'hardware_interface', '--ros-args',
              '-p', f'port:={link}', '-p', 'link_timeout_s:=0.4', '-p',
-             'reconnect_period_s:=0.3', *extra], cwd=REPO, env=env, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True, start_new_session=True)
-        self.lines = []
-        threading.Thread(target=self._collect, daemon=True).start()
-
-    def _collect(self):
-        for line in self.process.stdout:
-            self.lines.append(line.rstrip())
+             'reconnect_period_s:=0.3', *extra], env, cwd=REPO)
 
     def count(self, pattern: str) -> int:
         """Number of output lines matching pattern."""
-        return sum(1 for line in list(self.lines) if re.search(pattern, line))
+        return sum(1 for line in self.output().splitlines() if re.search(pattern, line))
 
     def wait_for(self, pattern: str, count: int = 1, timeout: float = 10.0):
         """Wait until `count` lines match pattern."""
         deadline = time.monotonic() + timeout
         while self.count(pattern) < count:
             assert time.monotonic() < deadline, (
-                f'{pattern!r} x{count} not seen; output:\n' + '\n'.join(self.lines))
+                f'{pattern!r} x{count} not seen; output:\n' + self.output())
             time.sleep(0.05)
 
     def stop(self) -> int:

@@ -15,17 +15,16 @@ Integration: lockstep. Simulated time waits for the stack, and a silent stack is
 
 import os
 from pathlib import Path
-import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 from mecanum_control import esp32_protocol as proto
 import pytest
 from rosgraph_msgs.msg import Clock
 import serial
+from tests.conftest import OutputProcess
 
 pytestmark = pytest.mark.integration
 
@@ -38,42 +37,11 @@ def clock_s(msg: Clock) -> float:
     return msg.clock.sec + msg.clock.nanosec * 1e-9
 
 
-class Process:
-    """A process whose output lines are kept with their arrival time (monotonic s)."""
+class Process(OutputProcess):
+    """A process started in the repository, stopped as Ctrl-C would (then killed)."""
 
     def __init__(self, command, env):
-        self.lines = []
-        self._lock = threading.Lock()
-        self.process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, text=True,
-                                        cwd=str(REPO), start_new_session=True)
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self):
-        for line in self.process.stdout:
-            with self._lock:
-                self.lines.append((time.monotonic(), line.rstrip('\n')))
-
-    def output(self) -> str:
-        with self._lock:
-            return '\n'.join(line for _, line in self.lines)
-
-    def wait_for_line(self, pattern: str, timeout: float = 30.0):
-        """Return (arrival time, match) of the first line matching pattern."""
-        regex = re.compile(pattern)
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self._lock:
-                for when, line in self.lines:
-                    match = regex.search(line)
-                    if match:
-                        return when, match
-            if self.process.poll() is not None and time.monotonic() > deadline - timeout + 1:
-                with self._lock:
-                    if not any(regex.search(line) for _, line in self.lines):
-                        break
-            time.sleep(0.02)
-        raise AssertionError(f'no line matched {pattern!r}; output:\n{self.output()}')
+        super().__init__(command, env, cwd=str(REPO))
 
     def stop(self):
         if self.process.poll() is None:
@@ -102,8 +70,9 @@ def test_the_simulator_waits_for_the_board_and_names_it_when_it_stays_silent(
             sent_at_s = clock_s(clock.latest())
             host.write(b'\x00' + proto.encode_frame(
                 proto.MotorEfforts((0.0, 0.0, 0.0, 0.0), 200), 0))
-            sim.wait_for_line(r'lockstep: the board .* answers: simulated time now waits')
-            silent_at, match = sim.wait_for_line(
+            sim.wait_for_line_at(r'lockstep: the board .* answers: simulated time now waits',
+                                 timeout=30)
+            silent_at, match = sim.wait_for_line_at(
                 r'lockstep: the board \(MOTOR_EFFORTS from hardware_interface\) has not '
                 r'answered /clock (\d+\.\d+) s for 1\.\d s', timeout=30)
             stalled_s = float(match.group(1))
@@ -114,7 +83,7 @@ def test_the_simulator_waits_for_the_board_and_names_it_when_it_stays_silent(
             assert not late, f'/clock ran past {stalled_s} s while the board owed an answer'
             # Gone: time runs on (at real time at most) until the give-up.
             clock.wait_for(lambda m: clock_s(m) > stalled_s + 0.5, timeout=10)
-            sim.wait_for_line(r'\[FATAL\].*lockstep: the board \(MOTOR_EFFORTS from '
+            sim.wait_for_line_at(r'\[FATAL\].*lockstep: the board \(MOTOR_EFFORTS from '
                               r'hardware_interface\) has not answered for 4 s', timeout=30)
             assert sim.process.wait(timeout=20) == 1
             assert 'Traceback' not in sim.output()
