@@ -216,6 +216,51 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
     status.wait_since(start, lambda m: m.data == NO_POSE, timeout=10.0)
 
 
+def test_a_motion_waits_for_a_subscriber_and_then_lasts_its_full_duration(
+        start_system, test_node, tmp_path):
+    """
+    With no chain watched and nobody subscribed to cmd_vel_text, a command is held.
+
+    A base that DDS discovery finds late would otherwise miss the start of the motion
+    (CI saw the minimal system strafe 0.20 m of a 0.3 m command). Once a subscriber
+    appears, the motion starts and lasts its whole duration from its first twist.
+    """
+    node = test_node.node
+    test_node.start_clock()
+    launch = {'launch': [{'node': {
+        'pkg': 'robot_controller', 'exec': 'robot_control_node', 'name': 'robot_controller',
+        'param': [{'name': 'chain_output_topic', 'value': ''},
+                  {'name': 'use_sim_time', 'value': True}]}}]}
+    path = tmp_path / 'robot_controller_alone.launch.yaml'
+    path.write_text(yaml.safe_dump(launch, sort_keys=False))
+    status = test_node.record(String, 'control_status')
+    command_pub = node.create_publisher(String, 'control_command', 10)
+    system = start_system(str(path))
+    system.wait_for_line(r'\[robot_controller\].*ready.*not watching the command chain')
+    deadline = time.monotonic() + 20
+    while command_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    command_pub.publish(String(data='strafe left 0.5 m at 0.25 m/s'))   # 2 s
+    system.wait_for_line(r"Holding 'strafe left 0.5 m at 0.25 m/s' until something "
+                         r'subscribes to /cmd_vel_text')
+    # Held for more than the motion's duration: nothing is sent, it is not done.
+    test_node.wait_sim(2.5)
+    assert not any(m.data.startswith('done') for m in status.since(0.0))
+
+    twist_times_ns = []
+    node.create_subscription(Twist, 'cmd_vel_text',
+                             lambda msg: twist_times_ns.append((test_node.clock_ns, msg)), 10)
+    done = status.wait_for(lambda m: m.data == 'done: strafe left', timeout=30.0)
+    assert done is not None
+    moving = [when for when, msg in twist_times_ns if msg.linear.y == 0.25]
+    assert moving, 'no twist of the motion was received'
+    stopped = [when for when, msg in twist_times_ns if is_zero(msg) and when >= moving[0]]
+    assert stopped, 'the motion did not end with a zero twist'
+    # 2 s from the first twist received, to within the 20 Hz publishing period and the
+    # delivery of /clock to both processes.
+    assert (stopped[0] - moving[0]) * 1e-9 == pytest.approx(2.0, abs=0.1)
+
+
 @pytest.mark.parametrize('parameter, value, message', [
     ('zone_file', '/nonexistent/zone.yaml', 'cannot read the zone file'),
     ('zone_margin_m', '-0.1', 'parameter zone_margin_m must be finite and >= 0'),

@@ -19,7 +19,9 @@ Motions are timed on the node's clock. On simulated time (``use_sim_time``) that
 reads 0 until the first /clock message arrives, which on a loaded machine can be seconds
 after the node is up (DDS discovery). A command accepted before then waits, without
 moving the robot, and starts at the clock's first tick, so that it still lasts its full
-duration.
+duration. Likewise, without a watched chain (below), a motion starts only once something
+subscribes to ``cmd_vel_text`` (a warning says so while it waits): a base found late by
+DDS discovery would otherwise miss the start of the motion.
 
 The authorised zone: with a zone file (``zone_file``), a command is checked before it
 starts: its motion (the constant twist for its duration, integrated from the robot's
@@ -127,6 +129,7 @@ class RobotController(Node):
         self.motion = None
         self.motion_text = ''
         self.motion_start_s = None   # None while a motion waits for the clock to start
+        self.holding_for_subscriber = False  # warned that cmd_vel has no subscriber yet
         self.accepted = False    # False while a motion waits for its zone check
 
         self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
@@ -238,6 +241,15 @@ class RobotController(Node):
                 return
             self.accepted = True
             self.report(f'accepted: {self.motion_text}')
+        if not self.watching_chain() and self.cmd_vel_pub.get_subscription_count() == 0:
+            if not self.holding_for_subscriber:
+                self.holding_for_subscriber = True
+                self.get_logger().warning(
+                    f'Holding {self.motion_text!r} until something subscribes to '
+                    f'{self.cmd_vel_pub.topic_name} (a motion sent to nobody would be '
+                    'timed out before it moved the robot)')
+            return
+        self.holding_for_subscriber = False
         self.start_motion()
 
     def zone_problem(self, motion: Motion, text: str) -> str:
@@ -279,7 +291,7 @@ class RobotController(Node):
         """Keep publishing the running motion; end it when its time is up or it is held."""
         if self.motion is None:
             return
-        if self.motion_start_s is None:   # accepted before the clock started
+        if self.motion_start_s is None:   # waiting for the clock or for a subscriber
             if self.clock_started():
                 self.begin()
             return
