@@ -10,6 +10,7 @@ local (latched), both reliable with depth 100.
 """
 
 import math
+from typing import Callable, Optional
 
 from mecanum_localization.transforms import PlanarTransform, quaternion_yaw, TransformBuffer
 from rclpy.node import Node
@@ -25,9 +26,12 @@ def stamp_to_s(stamp) -> float:
 class TransformListener:
     """Feeds every /tf and /tf_static transform a node receives into a buffer."""
 
-    def __init__(self, node: Node, buffer: TransformBuffer):
+    def __init__(self, node: Node, buffer: TransformBuffer,
+                 on_update: Optional[Callable[[], None]] = None):
+        """Subscribe /tf and /tf_static; on_update runs after each message is stored."""
         self.node = node
         self.buffer = buffer
+        self.on_update = on_update
         self.rejected = 0
         dynamic = QoSProfile(depth=100)
         static = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -50,3 +54,5 @@ class TransformListener:
                 if math.isfinite(time_s):
                     self.node.get_logger().warning(f'ignoring transform: {error}',
                                                    throttle_duration_sec=5.0)
+        if self.on_update is not None:
+            self.on_update()

@@ -4,7 +4,11 @@ slam: online SLAM from the lidar and odometry, slam_toolbox's online_async job.
 Subscribes ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, depth 1: when a scan
 takes longer than the scan period the newest one is processed next, as online_async
 drops scans) and reads ``odom -> base_link`` (at the scan's stamp) and the laser mount
-from ``/tf`` and ``/tf_static``. Publishes:
+from ``/tf`` and ``/tf_static``. A scan newer than the newest odometry waits for it (as
+slam_toolbox's tf message filter), up to ``transform_timeout`` of the node's clock, then
+takes the newest odometry: the odometry of a scan's own time, not of up to one odometry
+period earlier, whatever the machine's speed (in lockstep at max speed a scan is taken
+before the EKF has published its time). Publishes:
 
 * ``map`` (nav_msgs/OccupancyGrid, transient local) and ``map_metadata`` every
   ``map_update_interval`` seconds once it changed;
@@ -17,6 +21,7 @@ latched ``map``. Parameters: slam_toolbox's names (config/slam_params.yaml); the
 algorithm is :mod:`mecanum_navigation.slam` (no ROS).
 """
 
+from collections import deque
 from dataclasses import fields
 import math
 import sys
@@ -40,6 +45,8 @@ from tf2_msgs.msg import TFMessage
 
 #: Seconds between repeats of one kind of warning.
 WARNING_PERIOD_S = 5.0
+#: Scans kept while they wait for odometry (10 Hz scans wait at most transform_timeout).
+MAX_WAITING_SCANS = 10
 
 
 class SlamNode(Node):
@@ -67,13 +74,14 @@ class SlamNode(Node):
         self.process_times_s = []
         self.last_scan_stamp = None
 
+        self.waiting_scans = deque(maxlen=MAX_WAITING_SCANS)
         self.tf_buffer = TransformBuffer()
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.map_pub = self.create_publisher(OccupancyGrid, 'map', latched)
         self.metadata_pub = self.create_publisher(MapMetaData, 'map_metadata', latched)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, 'pose', 10)
         self.tf_pub = self.create_publisher(TFMessage, '/tf', 100)
-        self.tf_listener = TransformListener(self, self.tf_buffer)
+        self.tf_listener = TransformListener(self, self.tf_buffer, self.take_waiting_scans)
         scan_qos = QoSProfile(depth=1, reliability=qos_profile_sensor_data.reliability)
         self.scan_sub = self.create_subscription(LaserScan, scan_topic, self.on_scan, scan_qos)
         self.transform_timer = self.create_timer(transform_period_s, self.publish_transform)
@@ -101,18 +109,33 @@ class SlamNode(Node):
         return value
 
     def on_scan(self, msg: LaserScan) -> None:
-        """Add a scan with the odometry pose at its stamp."""
+        """Queue a scan (every throttle_scans-th) until the odometry at its stamp is known."""
         self.scan_count += 1
         if (self.scan_count - 1) % self.throttle_scans:
             return
-        stamp_s = stamp_to_s(msg.header.stamp)
+        self.waiting_scans.append(msg)
+        self.take_waiting_scans()
+
+    def take_waiting_scans(self) -> None:
+        """Add the waiting scans whose odometry has come, or that waited transform_timeout."""
+        now_s = None
+        while self.waiting_scans:
+            msg = self.waiting_scans[0]
+            stamp_s = stamp_to_s(msg.header.stamp)
+            exact = self.tf_buffer.can_transform(self.odom_frame, self.base_frame, stamp_s)
+            if not exact:
+                now_s = now_s or self.get_clock().now().nanoseconds * 1e-9
+                if now_s - stamp_s < self.transform_timeout_s:
+                    return
+            self.waiting_scans.popleft()
+            self.add_scan(msg, stamp_s, exact)
+
+    def add_scan(self, msg: LaserScan, stamp_s: float, exact: bool) -> None:
+        """Add a scan with the odometry pose at its stamp (exact) or the newest one."""
         frame = msg.header.frame_id.lstrip('/')
         try:
-            try:
-                odom = self.tf_buffer.lookup(self.odom_frame, self.base_frame, stamp_s)
-            except TransformError:
-                # The newest odometry, when the scan's time is just past it.
-                odom = self.tf_buffer.lookup(self.odom_frame, self.base_frame)
+            odom = self.tf_buffer.lookup(self.odom_frame, self.base_frame,
+                                         stamp_s if exact else None)
             mount = self.tf_buffer.lookup(self.base_frame, frame)
         except TransformError as error:
             self._warn('tf', f'scan skipped: {error}')
