@@ -3,8 +3,8 @@ Integration: online SLAM maps the apartment while the simulated robot explores i
 
 The full simulated robot (mecanum_bringup simulation.launch.yaml: simulator, control
 stack on the simulated ESP32, description, EKF) and slam.launch.yaml run in their own
-processes on simulated time, in lockstep (simulated time waits for every node, so a
-busy machine slows the test down instead of changing what SLAM sees). The test drives a
+processes on simulated time, in lockstep at max speed (simulated time waits for every
+node, so a busy machine slows the test down instead of changing what SLAM sees). The test drives a
 scripted exploration through every room and back (a waypoint follower on the simulator's
 ground truth, as a person with a remote would), then checks what SLAM published: the
 map's walls against the world's ground-truth map, SLAM's pose against the ground truth,
@@ -64,7 +64,8 @@ def write_launch(directory: Path) -> Path:
             'arg': [{'name': 'world', 'value': str(write_world(directory))},
                     {'name': 'board_port', 'value': str(directory / 'ttySIM')},
                     {'name': 'estop_latch_file', 'value': str(directory / 'estop')},
-                    {'name': 'lockstep', 'value': 'true'}]}},
+                    {'name': 'lockstep', 'value': 'true'},
+                    {'name': 'real_time_factor', 'value': '0'}]}},
         {'include': {
             'file': '$(find-pkg-share mecanum_navigation)/launch/slam.launch.yaml',
             'arg': [{'name': 'use_sim_time', 'value': 'true'}]}},
@@ -82,41 +83,53 @@ def planar(msg):
 
 
 class Driver:
-    """Follows ROUTE on the ground truth: world-frame velocity to the next waypoint."""
+    """
+    Follows ROUTE on the ground truth: world-frame velocity to the next waypoint.
 
-    def __init__(self, test_node, truth):
-        """Create the command publisher; run() drives until the route ends."""
+    It runs on simulated time: each ground-truth message (50 Hz) may bring a new command,
+    one every COMMAND_PERIOD_S of simulated time, so the route is driven the same way at
+    any speed of the lockstep simulation.
+    """
+
+    COMMAND_PERIOD_S = 0.05
+
+    def __init__(self, test_node):
+        """Create the command publisher and follow the ground truth from now on."""
         self.publisher = test_node.node.create_publisher(Twist, 'cmd_vel', 10)
-        self.truth = truth
         self.done = threading.Event()
-        self.stop = threading.Event()
         self.index = 0
+        self.latest = None
+        self.last_command_s = -math.inf
+        test_node.node.create_subscription(Odometry, 'ground_truth/odom', self.on_truth, 50)
 
-    def run(self):
-        """Drive the route (a thread), then stop the robot."""
-        index = 0
-        while not self.stop.is_set() and index < len(ROUTE):
-            self.index = index
-            _, x, y, yaw = planar(self.truth.latest())
-            gx, gy = ROUTE[index]
-            dx, dy = gx - x, gy - y
-            distance = math.hypot(dx, dy)
-            if distance < 0.08:
-                index += 1
-                continue
-            speed = min(SPEED_M_S, 1.0 * distance)
-            vx_world, vy_world = speed * dx / distance, speed * dy / distance
-            # Face the direction of travel (a turn at each waypoint, strafing meanwhile).
-            heading_error = math.atan2(math.sin(math.atan2(dy, dx) - yaw),
-                                       math.cos(math.atan2(dy, dx) - yaw))
-            cmd = Twist()
-            cmd.linear.x = math.cos(yaw) * vx_world + math.sin(yaw) * vy_world
-            cmd.linear.y = -math.sin(yaw) * vx_world + math.cos(yaw) * vy_world
-            cmd.angular.z = max(-1.0, min(1.0, 1.5 * heading_error))
-            self.publisher.publish(cmd)
-            time.sleep(0.05)
-        self.publisher.publish(Twist())
-        self.done.set()
+    def on_truth(self, msg):
+        """Send the next command when it is due; stop the robot at the route's end."""
+        if self.done.is_set():
+            return
+        t, x, y, yaw = self.latest = planar(msg)
+        if t - self.last_command_s < self.COMMAND_PERIOD_S:
+            return
+        self.last_command_s = t
+        while self.index < len(ROUTE) and math.hypot(ROUTE[self.index][0] - x,
+                                                     ROUTE[self.index][1] - y) < 0.08:
+            self.index += 1
+        if self.index == len(ROUTE):
+            self.publisher.publish(Twist())
+            self.done.set()
+            return
+        gx, gy = ROUTE[self.index]
+        dx, dy = gx - x, gy - y
+        distance = math.hypot(dx, dy)
+        speed = min(SPEED_M_S, 1.0 * distance)
+        vx_world, vy_world = speed * dx / distance, speed * dy / distance
+        # Face the direction of travel (a turn at each waypoint, strafing meanwhile).
+        heading_error = math.atan2(math.sin(math.atan2(dy, dx) - yaw),
+                                   math.cos(math.atan2(dy, dx) - yaw))
+        cmd = Twist()
+        cmd.linear.x = math.cos(yaw) * vx_world + math.sin(yaw) * vy_world
+        cmd.linear.y = -math.sin(yaw) * vx_world + math.cos(yaw) * vy_world
+        cmd.angular.z = max(-1.0, min(1.0, 1.5 * heading_error))
+        self.publisher.publish(cmd)
 
 
 def test_route_is_free():
@@ -137,17 +150,11 @@ def test_slam_maps_the_apartment(start_system, test_node, ros_env, tmp_path):
     system.wait_for_line(r'\[slam_toolbox\].*1 keyframes', timeout=60)
     truth.wait_for(lambda m: True)
 
-    driver = Driver(test_node, truth)
-    thread = threading.Thread(target=driver.run, daemon=True)
-    thread.start()
-    try:
-        assert driver.done.wait(timeout=400), (
-            f'the route was not driven in time: the robot is at (t s, x, y, yaw) '
-            f'{planar(truth.latest())}, heading for waypoint {driver.index} '
-            f'{ROUTE[driver.index]}\n{system.output()}')
-    finally:
-        driver.stop.set()
-        thread.join(timeout=5)
+    driver = Driver(test_node)
+    assert driver.done.wait(timeout=400), (
+        f'the route was not driven in time: the robot is at (t s, x, y, yaw) '
+        f'{driver.latest}, heading for waypoint {driver.index} '
+        f'{ROUTE[min(driver.index, len(ROUTE) - 1)]}\n{system.output()}')
     # The last map update (map_update_interval 2 s) after the last keyframe.
     end_s = planar(truth.latest())[0]
     truth.wait_for_new(lambda m: planar(m)[0] >= end_s + 3.0, timeout=60)
