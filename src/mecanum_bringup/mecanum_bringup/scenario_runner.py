@@ -369,6 +369,15 @@ def _wait_until_ready(system: SystemProcess, driver, say: Progress) -> None:
         if time.monotonic() > deadline:
             raise RuntimeError('no /clock or ground truth from the simulator')
         time.sleep(0.05)
+    # Localised: text commands are checked against the zone on map -> base_link, which
+    # amcl completes with its first estimate (CI once saw 'forward 1 m' refused at 0.2 s
+    # of simulated time, lockstep at max: no recent map -> base_link pose).
+    while len(driver.estimate_track()) == 0:
+        _check(system)
+        if time.monotonic() > deadline:
+            raise RuntimeError('no localisation estimate on amcl_pose (is amcl running, '
+                               'with its initial pose?)')
+        time.sleep(0.05)
 
 
 def _check(system: SystemProcess) -> None:
