@@ -35,7 +35,7 @@ from std_msgs.msg import String, UInt32
 #: The command chain's stages whose STOP states are recorded as safety events.
 SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
 #: Wall seconds to wait for a goal's answer before sending it again (lost in discovery).
-GOAL_RESEND_S = 5.0
+GOAL_RESEND_S = 2.0
 #: Wall seconds to wait for an answer at all.
 ANSWER_TIMEOUT_S = 30.0
 

@@ -84,8 +84,8 @@ READY_PATTERNS = (('[ekf_filter_node]', 'EKF started'),
                   ('[navigator]', 'ready for goals'),
                   ('[hardware_interface]', 'IMU calibrated at rest'))
 READY_TIMEOUT_S = 120.0
-#: Wall seconds a goal may go unanswered (DDS discovery) before it is sent again.
-GOAL_RESEND_S = 5.0
+#: Wall seconds before a goal's result is asked for again (a request lost in discovery).
+RESULT_REQUEST_S = 1.0
 #: Publishing period (simulated s) of a cmd_vel step's twist.
 CMD_VEL_PERIOD_S = 0.05
 #: How far (m) the robot may move during a goal that ended in an error and still count
@@ -450,15 +450,23 @@ def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
         result.outcome, result.error_code = 'refused', 9000
         result.error_message = 'the goal was rejected'
         return
-    future = handle.get_result_async()
+    # The result is asked for again every RESULT_REQUEST_S of wall time: like a goal, a
+    # get_result request can be lost in discovery (its answer goes to a reader the server
+    # has not matched yet). Seen under a CPU hog in lockstep at max: a goal refused at
+    # once never got its answer, and its 10 s of simulated time ran out.
+    futures = [handle.get_result_async()]
+    asked = time.monotonic()
     deadline = result.start_s + step.timeout_s
-    while not future.done():
+    while not any(future.done() for future in futures):
         if poll() > deadline:
             driver.cancel(handle, poll)
             result.outcome = 'timeout'
             return
+        if time.monotonic() - asked > RESULT_REQUEST_S:
+            futures.append(handle.get_result_async())
+            asked = time.monotonic()
         time.sleep(0.02)
-    answer = future.result().result
+    answer = next(future for future in futures if future.done()).result().result
     result.error_code, result.error_message = int(answer.error_code), answer.error_msg
     if result.error_code == 0:
         result.outcome = 'reached'
