@@ -26,13 +26,14 @@ from dataclasses import fields
 import math
 import sys
 import time
+from typing import Optional
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
-from mecanum_localization.transforms import TransformBuffer, TransformError
+from mecanum_localization.transforms import PlanarTransform, TransformBuffer, TransformError
 from mecanum_navigation.grid_messages import occupancy_grid
 from mecanum_navigation.slam import OnlineSlam, SlamConfig
 from nav_msgs.msg import MapMetaData, OccupancyGrid
@@ -122,20 +123,23 @@ class SlamNode(Node):
         while self.waiting_scans:
             msg = self.waiting_scans[0]
             stamp_s = stamp_to_s(msg.header.stamp)
-            exact = self.tf_buffer.can_transform(self.odom_frame, self.base_frame, stamp_s)
-            if not exact:
-                now_s = now_s or self.get_clock().now().nanoseconds * 1e-9
+            try:
+                odom = self.tf_buffer.lookup(self.odom_frame, self.base_frame, stamp_s)
+            except TransformError:
+                if now_s is None:
+                    now_s = self.get_clock().now().nanoseconds * 1e-9
                 if now_s - stamp_s < self.transform_timeout_s:
                     return
+                odom = None
             self.waiting_scans.popleft()
-            self.add_scan(msg, stamp_s, exact)
+            self.add_scan(msg, odom)
 
-    def add_scan(self, msg: LaserScan, stamp_s: float, exact: bool) -> None:
-        """Add a scan with the odometry pose at its stamp (exact) or the newest one."""
+    def add_scan(self, msg: LaserScan, odom: Optional[PlanarTransform]) -> None:
+        """Add a scan with the odometry pose at its stamp (odom), None: the newest one."""
         frame = msg.header.frame_id.lstrip('/')
         try:
-            odom = self.tf_buffer.lookup(self.odom_frame, self.base_frame,
-                                         stamp_s if exact else None)
+            if odom is None:
+                odom = self.tf_buffer.lookup(self.odom_frame, self.base_frame)
             mount = self.tf_buffer.lookup(self.base_frame, frame)
         except TransformError as error:
             self._warn('tf', f'scan skipped: {error}')
