@@ -129,7 +129,7 @@ class RobotController(Node):
         self.motion = None
         self.motion_text = ''
         self.motion_start_s = None   # None while a motion waits for the clock to start
-        self.holding_for_subscriber = False  # warned that cmd_vel has no subscriber yet
+        self.holding_for_subscriber = False  # warned that this motion has no subscriber yet
         self.accepted = False    # False while a motion waits for its zone check
 
         self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
@@ -215,6 +215,7 @@ class RobotController(Node):
             return
         self.motion = motion
         self.motion_text = text
+        self.holding_for_subscriber = False
         self.accepted = self.zone is None
         if self.accepted:
             self.report(f'accepted: {text}')
@@ -249,7 +250,6 @@ class RobotController(Node):
                     f'{self.cmd_vel_pub.topic_name} (a motion sent to nobody would be '
                     'timed out before it moved the robot)')
             return
-        self.holding_for_subscriber = False
         self.start_motion()
 
     def zone_problem(self, motion: Motion, text: str) -> str:
