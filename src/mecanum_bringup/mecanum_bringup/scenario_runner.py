@@ -354,30 +354,33 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
 
 def _wait_until_ready(system: SystemProcess, driver, say: Progress) -> None:
     deadline = time.monotonic() + READY_TIMEOUT_S
-    while not all(system.has_line(*parts) for parts in READY_PATTERNS):
-        _check(system)
-        if time.monotonic() > deadline:
-            missing = [' '.join(parts) for parts in READY_PATTERNS
-                       if not system.has_line(*parts)]
-            raise RuntimeError(f'the system was not ready within {READY_TIMEOUT_S:.0f} s '
-                               f'(no {missing})')
-        time.sleep(0.1)
+
+    def not_ready() -> str:
+        missing = [' '.join(parts) for parts in READY_PATTERNS if not system.has_line(*parts)]
+        return f'the system was not ready within {READY_TIMEOUT_S:.0f} s (no {missing})'
+
+    _wait_for(lambda: all(system.has_line(*parts) for parts in READY_PATTERNS), system,
+              deadline, not_ready, 0.1)
     if not driver.wait_for_navigator(timeout_s=30.0):
         raise RuntimeError('the navigate_to_pose action server did not appear')
-    while driver.sim_now() is None or driver.latest_truth() is None:
-        _check(system)
-        if time.monotonic() > deadline:
-            raise RuntimeError('no /clock or ground truth from the simulator')
-        time.sleep(0.05)
+    _wait_for(lambda: driver.sim_now() is not None and driver.latest_truth() is not None,
+              system, deadline, lambda: 'no /clock or ground truth from the simulator', 0.05)
     # Localised: text commands are checked against the zone on map -> base_link, which
     # amcl completes with its first estimate (CI once saw 'forward 1 m' refused at 0.2 s
     # of simulated time, lockstep at max: no recent map -> base_link pose).
-    while len(driver.estimate_track()) == 0:
+    _wait_for(lambda: len(driver.estimate_track()) > 0, system, deadline,
+              lambda: 'no localisation estimate on amcl_pose (is amcl running, with its '
+                      'initial pose?)', 0.05)
+
+
+def _wait_for(ready: Callable[[], bool], system: SystemProcess, deadline: float,
+              problem: Callable[[], str], period_s: float) -> None:
+    """Poll ready every period_s until true; RuntimeError(problem()) after deadline."""
+    while not ready():
         _check(system)
         if time.monotonic() > deadline:
-            raise RuntimeError('no localisation estimate on amcl_pose (is amcl running, '
-                               'with its initial pose?)')
-        time.sleep(0.05)
+            raise RuntimeError(problem())
+        time.sleep(period_s)
 
 
 def _check(system: SystemProcess) -> None:
