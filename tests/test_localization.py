@@ -61,7 +61,7 @@ Q = np.diag(np.reshape(EKF_PARAMETERS['process_noise_covariance'], (15, 15)))
 P0 = np.diag(np.reshape(EKF_PARAMETERS['initial_estimate_covariance'], (15, 15)))
 
 
-def variance_growth_bounds(elapsed_s: float, speed: float) -> tuple:
+def variance_growth_bounds(elapsed_s: float, speed: float, yaw_variance: float) -> tuple:
     """
     Return how much the x and the yaw variances can grow elapsed_s after set_pose.
 
@@ -69,13 +69,13 @@ def variance_growth_bounds(elapsed_s: float, speed: float) -> tuple:
     covariance (P0) and grow with the process noise (Q, per second); fusing measurements
     only lowers them. Their variance reaches the pose through the motion model: with no
     fusion, in continuous time, x gains Q_x t + P0_v t^2 + Q_v t^3 / 3 + Q_a t^5 / 20 and,
-    moving at speed, v^2 t^2 times the yaw variance (at most its set value 0.03 plus
-    Q_yaw t); yaw gains Q_yaw t + P0_vyaw t^2 + Q_vyaw t^3 / 3. The coupled terms are
+    moving at speed, v^2 t^2 times the yaw variance (at most its set value yaw_variance
+    plus Q_yaw t); yaw gains Q_yaw t + P0_vyaw t^2 + Q_vyaw t^3 / 3. The coupled terms are
     doubled for the discrete prediction steps and the cross terms.
     """
     t = elapsed_s
     coupled_x = (P0[6] * t ** 2 + Q[6] * t ** 3 / 3 + Q[12] * t ** 5 / 20
-                 + speed ** 2 * t ** 2 * (0.03 + Q[5] * t))
+                 + speed ** 2 * t ** 2 * (yaw_variance + Q[5] * t))
     coupled_yaw = P0[11] * t ** 2 + Q[11] * t ** 3 / 3
     return Q[0] * t + 2.0 * coupled_x, Q[5] * t + 2.0 * coupled_yaw
 
@@ -285,7 +285,7 @@ def test_set_pose_service_and_topic_move_the_estimate(localization):
     # The pose's variances are the requested ones, grown since then by at most what the
     # process noise adds (on 2026-11-25 CI saw the first estimate 0.12 s after set_pose
     # with x's variance 0.0112092: more than 0.01 + Q_x dt, within the bound).
-    x_growth, yaw_growth = variance_growth_bounds(elapsed, SPEED)
+    x_growth, yaw_growth = variance_growth_bounds(elapsed, SPEED, yaw_variance=0.03)
     assert first.pose.covariance[0] == pytest.approx(0.01, abs=x_growth + 1e-9)
     assert first.pose.covariance[35] == pytest.approx(0.03, abs=yaw_growth + 1e-9)
     # Locked on again, the robot moves along its new heading: the body twist turned 0.5.

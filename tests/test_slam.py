@@ -4,9 +4,9 @@ Integration: online SLAM maps the apartment while the simulated robot explores i
 The full simulated robot (mecanum_bringup simulation.launch.yaml: simulator, control
 stack on the simulated ESP32, description, EKF) and slam.launch.yaml run in their own
 processes on simulated time, in lockstep at max speed (simulated time waits for every
-node, so a busy machine slows the test down instead of changing what SLAM sees). The test drives a
-scripted exploration through every room and back (a waypoint follower on the simulator's
-ground truth, as a person with a remote would), then checks what SLAM published: the
+node, so a busy machine slows the test down instead of changing what SLAM sees). The test
+drives a scripted exploration through every room and back (a waypoint follower on the
+simulator's ground truth, as a person with a remote would), then checks what SLAM published: the
 map's walls against the world's ground-truth map, SLAM's pose against the ground truth,
 and that map_saver_cli saves the map in the Nav2 format.
 
@@ -18,7 +18,6 @@ import math
 from pathlib import Path
 import subprocess
 import threading
-import time
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from mecanum_navigation.grid_messages import occupancy_map
