@@ -185,11 +185,11 @@ class Recorder:
         raise AssertionError(f'no matching message within {timeout} s '
                              f'({len(self.messages)} received)')
 
-    def latest(self):
-        """Return the newest message, or None."""
+    def latest(self, received_by: float = math.inf):
+        """Return the newest message received by monotonic time received_by, or None."""
         with self._lock:
-            return self.messages[-1][1] if self.messages else None
-
+            return next((msg for when, msg in reversed(self.messages) if when <= received_by),
+                        None)
 
     def since(self, start: float) -> list:
         """Messages received at or after monotonic time start."""

@@ -11,11 +11,18 @@ simulated time from the kill. The timeouts that add up to that time are listed i
 docs/architecture.md ("The command chain"). The runner must bring the node back, and
 the robot must drive again through the restarted node (the next round starts only
 when it does). Each node's stop time is printed.
+
+A kill whose node is back (restarted) before STOP_WITHIN_S of simulated time has passed,
+with the robot still moving, did not test the budget: the simulator had stalled (CI once
+saw "Simulation fell 1.00 s behind" right after killing velocity_controller, which came
+back 0.15 s of simulated time after the kill and drove on). That node is killed again,
+up to KILLS_PER_NODE times.
 """
 
 import math
 import os
 import signal
+import time
 
 from nav_msgs.msg import Odometry
 import pytest
@@ -35,6 +42,8 @@ DRIVE_M_S = 0.15
 #: instead: a process stays dead for 1 s of wall time plus its start-up (over 0.5 s
 #: simulated), and a busy machine's delays count half against the 0.5 s.
 REAL_TIME_FACTOR = 0.5
+#: Kills of one node at most, when the node is back before the budget has run out.
+KILLS_PER_NODE = 3
 
 
 def stamp_s(msg) -> float:
@@ -46,6 +55,34 @@ def speed_m_s(msg: Odometry) -> float:
     """The true body speed of a ground truth message (m/s)."""
     twist = msg.twist.twist
     return math.hypot(twist.linear.x, twist.linear.y)
+
+
+def kill_and_time_the_stop(system, truth, label: str, start: int):
+    """
+    Kill label's process; return the simulated seconds until the robot stopped.
+
+    None when the robot had not stopped when the runner restarted the node (its start
+    number ``start``) and that was less than STOP_WITHIN_S of simulated time after the
+    kill. Returns once the node has been restarted.
+    """
+    pid = system.node_pid(label)
+    killed_at_s = stamp_s(truth.latest())
+    killed_wall = time.monotonic()
+    os.kill(pid, signal.SIGKILL)
+    restart = rf'\[runner\] restarted {label} \(start {start}, pid \d+\)'
+    restarted_wall, _ = system.wait_for_line_at(restart, timeout=30)
+    back_after_s = stamp_s(truth.latest(received_by=restarted_wall)) - killed_at_s
+    stopped = [msg for msg in truth.since(killed_wall)
+               if stamp_s(msg) > killed_at_s and speed_m_s(msg) < STOPPED_M_S]
+    if not stopped and back_after_s < STOP_WITHIN_S:
+        return None
+    if not stopped:
+        stopped = [truth.wait_since(killed_wall, lambda m: stamp_s(m) > killed_at_s
+                                    and speed_m_s(m) < STOPPED_M_S, timeout=30)]
+    stop_s = stamp_s(stopped[0]) - killed_at_s
+    print(f'{label}: killed at t = {killed_at_s:.2f} s, stopped {stop_s:.2f} s later '
+          f'(restarted {back_after_s:.2f} s after the kill)')
+    return stop_s
 
 
 def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
@@ -68,18 +105,17 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
         for number, label in enumerate(CHAIN):
             # Back and forth along the living room's open middle (start (2.95, 2.0)).
             drive.twist = (DRIVE_M_S if number % 2 == 0 else -DRIVE_M_S, 0.0, 0.0)
-            truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
-            pid = system.node_pid(label)
-            killed_at_s = stamp_s(truth.latest())
-            os.kill(pid, signal.SIGKILL)
-            stopped = truth.wait_for_new(
-                lambda m: stamp_s(m) > killed_at_s and speed_m_s(m) < STOPPED_M_S,
-                timeout=30)
-            stop_times[label] = stamp_s(stopped) - killed_at_s
-            print(f'{label}: killed at t = {killed_at_s:.2f} s, stopped '
-                  f'{stop_times[label]:.2f} s later')
-            system.wait_for_line(rf'\[runner\] restarted {label} \(start 2, pid \d+\)',
-                                 timeout=30)
+            for kill in range(1, KILLS_PER_NODE + 1):
+                truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
+                stop_s = kill_and_time_the_stop(system, truth, label, start=kill + 1)
+                if stop_s is not None:
+                    break
+                print(f'{label}: back before the robot had to stop (the simulator stalled); '
+                      f'killing it again')
+            assert stop_s is not None, (
+                f'{label} came back within {STOP_WITHIN_S} s of simulated time after each of '
+                f'{KILLS_PER_NODE} kills: the stop was never tested')
+            stop_times[label] = stop_s
         # The last restarted node (hardware_interface) carries commands again too.
         drive.twist = (DRIVE_M_S, 0.0, 0.0)
         truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
