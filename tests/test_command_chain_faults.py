@@ -65,7 +65,7 @@ def kill_and_time_the_stop(system, truth, label: str, start: int):
     number ``start``) and that was less than STOP_WITHIN_S of simulated time after the
     kill. Returns once the node has been restarted.
     """
-    pid = system.node_pid(label)
+    pid = system.node_pid(label, start=start - 1)
     killed_at_s = stamp_s(truth.latest())
     killed_wall = time.monotonic()
     os.kill(pid, signal.SIGKILL)
