@@ -2,6 +2,9 @@
 # Both set the workspace up first (venv, pinned wheels, colcon build) and skip what is done.
 PYTHON ?= python3
 PYTEST_ARGS ?=
+# Parallel test workers (pytest-xdist, one test file per worker at a time, in the order
+# of conftest.py; tests marked `alone` still run by themselves).
+TEST_WORKERS ?= auto
 
 .PHONY: setup demo scenarios test lint colcon-test bench clean
 
@@ -20,7 +23,8 @@ scenarios: setup
 	  --out reports/scenarios --junit reports/scenarios/junit.xml
 
 test: setup
-	@./mecanum exec python -m pytest $(PYTEST_ARGS)
+	@./mecanum exec python -m pytest -n $(TEST_WORKERS) --dist loadfile \
+	  --no-loadscope-reorder $(PYTEST_ARGS)
 
 colcon-test: setup
 	@./mecanum exec colcon --log-base log/colcon test --base-paths src --build-base build \

@@ -112,6 +112,30 @@ def processes_with_marker_fixture():
     return processes_with_marker
 
 
+class MarkedEnvironment:
+    """os.environ plus a marker of this test, to find the processes it left running."""
+
+    def __init__(self):
+        self.marker = uuid.uuid4().hex
+        self.env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+                        **{RUN_MARKER: self.marker})
+
+    def leftovers(self) -> list:
+        """PIDs of live processes started with this environment (or by them)."""
+        return processes_with_marker(self.marker)
+
+
+@pytest.fixture
+def marked_env():
+    """
+    A MarkedEnvironment for this test's subprocesses (localhost-only discovery).
+
+    Other tests may run beside this one (pytest-xdist), so a test looking for its
+    leftover processes looks for its own marker only.
+    """
+    return MarkedEnvironment()
+
+
 @pytest.fixture
 def ros_env():
     """An environment with a leased ROS_DOMAIN_ID and localhost-only discovery."""

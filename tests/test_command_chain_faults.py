@@ -27,7 +27,8 @@ import time
 from nav_msgs.msg import Odometry
 import pytest
 
-pytestmark = pytest.mark.integration
+#: alone: the stop budget is timed on a wall-clock simulator (see REAL_TIME_FACTOR).
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 #: Every node that a command passes through, from the mux to the serial line.
 CHAIN = ('twist_mux', 'collision_monitor', 'zone_guard', 'motor_controller',

@@ -30,7 +30,6 @@ import subprocess
 import sys
 import time
 
-from mecanum_bringup.scenario_runner import processes_with_marker
 import numpy as np
 import pytest
 
@@ -81,6 +80,7 @@ def stamp(msg) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
+@pytest.mark.long
 def test_the_demo_reaches_every_goal_without_a_collision(demo):
     result, report = demo
     assert result.returncode == 0, result.stdout[-3000:]
@@ -97,6 +97,7 @@ def test_the_demo_reaches_every_goal_without_a_collision(demo):
     assert 'amcl off by' in result.stdout
 
 
+@pytest.mark.long
 def test_the_recording_reads_back_with_the_mcap_library(demo):
     from mcap.reader import make_reader
     import yaml
@@ -124,6 +125,7 @@ def test_the_recording_reads_back_with_the_mcap_library(demo):
     assert len(scans[0][1].ranges) == 360 and scans[0][1].header.frame_id == 'laser'
 
 
+@pytest.mark.long
 def test_the_robot_strafed_through_the_strip_behind_the_bed(demo):
     _, report = demo
     summary = json.loads((report / 'summary.json').read_text())
@@ -140,6 +142,7 @@ def test_the_robot_strafed_through_the_strip_behind_the_bed(demo):
     assert np.median(np.abs(np.cos(yaw[in_strip]))) < 0.5      # ... while facing north
 
 
+@pytest.mark.long
 def test_the_person_came_close_and_was_never_touched(demo):
     _, report = demo
     summary = json.loads((report / 'summary.json').read_text())
@@ -159,6 +162,7 @@ def test_the_person_came_close_and_was_never_touched(demo):
         assert np.min(distances[during]) < 1.5, f'goal {index + 1} never met the person'
 
 
+@pytest.mark.long
 def test_amcl_held_the_pose_through_the_tour(demo):
     _, report = demo
     truth = np.loadtxt(report / 'truth.csv', delimiter=',', skiprows=1)
@@ -177,12 +181,12 @@ def test_amcl_held_the_pose_through_the_tour(demo):
     assert heading.max() < MAX_YAW_ERROR_RAD
 
 
-def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path):
+@pytest.mark.long
+def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path, marked_env):
     from mcap.reader import make_reader
     process = subprocess.Popen(
         demo_command(tmp_path, '--scenario', str(SCENARIOS / 'kitchen_run.yaml')),
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=marked_env.env)
     lines = []
     deadline = time.monotonic() + 180
     for line in process.stdout:
@@ -204,4 +208,4 @@ def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path):
         assert make_reader(stream).get_summary().statistics.message_count > 1000
     assert (report / 'bag' / 'metadata.yaml').exists()
     # Nothing of the run is left.
-    assert processes_with_marker() == []
+    assert marked_env.leftovers() == []

@@ -24,7 +24,8 @@ import sys
 
 import pytest
 
-pytestmark = pytest.mark.integration
+#: alone: it loads the machine itself (the CPU hog), which would disturb other tests.
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIO = REPO / 'src/mecanum_bringup/scenarios/text_commands.yaml'

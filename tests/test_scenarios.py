@@ -18,13 +18,11 @@ hanging near the border. Across the whole suite: no collision and no zone exit.
 """
 
 import json
-import os
 from pathlib import Path
 import subprocess
 import sys
 import xml.etree.ElementTree as ElementTree
 
-from mecanum_bringup.scenario_runner import processes_with_marker
 import pytest
 
 pytestmark = pytest.mark.integration
@@ -40,9 +38,10 @@ NOT_IN_CI = {'apartment_tour', 'kitchen_run'}
 SUITE = sorted(path for path in SCENARIOS.glob('*.yaml') if path.stem not in NOT_IN_CI)
 
 
-def run_scenarios(paths, out: Path, timeout_s: float):
+def run_scenarios(paths, out: Path, timeout_s: float, marked_env):
     """
-    Run run_scenarios on paths; return the completed process (output captured).
+    Run run_scenarios on paths with marked_env; return the completed process (output
+    captured).
 
     In lockstep (run_scenarios' default) at 'max': simulated time waits for the stack,
     so the verdicts do not depend on how fast this machine is or how busy; two at once
@@ -53,8 +52,7 @@ def run_scenarios(paths, out: Path, timeout_s: float):
         [sys.executable, '-m', 'mecanum_bringup.scenario_runner', *map(str, paths),
          '--out', str(out), '--junit', str(out / 'junit.xml'), '--quiet',
          '--real-time-factor', 'max', '--jobs', '2'],
-        capture_output=True, text=True, timeout=timeout_s,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
+        capture_output=True, text=True, timeout=timeout_s, env=marked_env.env)
 
 
 def summary(out: Path, name: str) -> dict:
@@ -62,9 +60,10 @@ def summary(out: Path, name: str) -> dict:
     return json.loads((out / name / 'summary.json').read_text())
 
 
-def test_the_suite_reports_every_scenario_as_expected(tmp_path):
+@pytest.mark.long
+def test_the_suite_reports_every_scenario_as_expected(tmp_path, marked_env):
     assert len(SUITE) >= 8
-    result = run_scenarios(SUITE, tmp_path, timeout_s=1500)
+    result = run_scenarios(SUITE, tmp_path, timeout_s=1500, marked_env=marked_env)
     print(result.stdout, result.stderr)
     assert result.returncode == 0, result.stdout[-3000:]
     assert f'{len(SUITE)} scenarios: {len(SUITE)} as expected, 0 unexpected, 0 errors' \
@@ -100,7 +99,7 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path):
             assert zone and zone[0]['passed'], (path.stem, zone)
             assert result_summary['goals_reached'] == sum(
                 1 for step in result_summary['steps'] if step['outcome'] == 'reached')
-    assert processes_with_marker() == []
+    assert marked_env.leftovers() == []
 
 
 def truth_track(out: Path, name: str):
@@ -140,26 +139,26 @@ def check_the_command_chain_scenarios(out: Path):
         lost['safety_events']
 
 
-def test_a_wrong_expectation_is_reported_unexpected(tmp_path):
+def test_a_wrong_expectation_is_reported_unexpected(tmp_path, marked_env):
     """The same refused goal, with `expect: fail` written in the file: exit code 1."""
     text = (SCENARIOS / 'goal_in_wall_refused.yaml').read_text()
     assert 'expect: pass' in text
     wrong = tmp_path / 'wrong_expectation.yaml'
     wrong.write_text(text.replace('name: goal_in_wall_refused', 'name: wrong_expectation')
                      .replace('expect: pass', 'expect: fail'))
-    result = run_scenarios([wrong], tmp_path / 'out', timeout_s=300)
+    result = run_scenarios([wrong], tmp_path / 'out', timeout_s=300, marked_env=marked_env)
     assert result.returncode == 1, result.stdout
     assert 'UNEXPECTED' in result.stdout
     suite = ElementTree.parse(tmp_path / 'out' / 'junit.xml').getroot()
     assert suite.get('failures') == '1'
-    assert processes_with_marker() == []
+    assert marked_env.leftovers() == []
 
 
-def test_an_invalid_scenario_file_is_a_clear_error(tmp_path):
+def test_an_invalid_scenario_file_is_a_clear_error(tmp_path, marked_env):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('scenario:\n  name: bad\n  world: apartment\n  steps:\n'
                    '  - goal: {x: 1.0, y: north}\n')
-    result = run_scenarios([bad], tmp_path / 'out', timeout_s=120)
+    result = run_scenarios([bad], tmp_path / 'out', timeout_s=120, marked_env=marked_env)
     assert result.returncode == 2
     assert "bad.yaml: steps[0].goal.y: must be a number, not 'north'" in result.stderr
     assert 'ERROR' in result.stdout

@@ -9,7 +9,8 @@ import time
 import pytest
 from rosgraph_msgs.msg import Clock
 
-pytestmark = pytest.mark.integration
+#: alone: measures simulated seconds per wall second.
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 REPO = Path(__file__).resolve().parents[1]
 
 

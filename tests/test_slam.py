@@ -140,6 +140,7 @@ def test_route_is_free():
             assert WORLD.is_free(x, y, clearance_m=0.25), (x, y)
 
 
+@pytest.mark.long
 def test_slam_maps_the_apartment(start_system, test_node, ros_env, tmp_path):
     system = start_system(str(write_launch(tmp_path)))
     truth = test_node.record(Odometry, 'ground_truth/odom')
