@@ -31,9 +31,11 @@ whole path. Otherwise it is rejected, with a warning and no twist sent: ``reject
 <command>: the footprint would come within 0.05 m of the border of the authorised zone
 at (x, y) after t s of the T s motion`` (the zone guard's words). The pose is
 ``global_frame`` -> ``robot_base_frame`` from /tf and /tf_static; with none, or one whose
-oldest dynamic link's newest transform is older than ``pose_timeout_s``, the command is
-rejected: ``rejected: cannot check the authorised zone: no recent map -> base_link pose
-(is localisation running?)``. With a zone, a command that arrives before the clock
+oldest dynamic link's newest transform is older than ``pose_timeout_s``, the command
+waits up to ``pose_timeout_s`` for a recent pose (localisation that has just started
+may publish it a moment after the command came), then is rejected: ``rejected: cannot
+check the authorised zone: no recent map -> base_link pose (is localisation
+running?)``. With a zone, a command that arrives before the clock
 starts is checked (and only then accepted) at the clock's first tick.
 
 Stop short: while a motion runs, the node watches the chain's output
@@ -64,6 +66,7 @@ motor_params.yaml, which launch files pass; the installed file's value by defaul
 
 import math
 import sys
+from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist
@@ -131,6 +134,7 @@ class RobotController(Node):
         self.motion_start_s = None   # None while a motion waits for the clock to start
         self.holding_for_subscriber = False  # warned that this motion has no subscriber yet
         self.accepted = False    # False while a motion waits for its zone check
+        self.pose_deadline_s = None  # until when its zone check waits for a recent pose
 
         self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
         self.status_pub = self.create_publisher(String, 'control_status', 10)
@@ -216,6 +220,7 @@ class RobotController(Node):
         self.motion = motion
         self.motion_text = text
         self.holding_for_subscriber = False
+        self.pose_deadline_s = None
         self.accepted = self.zone is None
         if self.accepted:
             self.report(f'accepted: {text}')
@@ -234,7 +239,18 @@ class RobotController(Node):
     def begin(self) -> None:
         """Check the waiting motion against the zone (if not yet done), then start it."""
         if not self.accepted:
-            problem = self.zone_problem(self.motion, self.motion_text)
+            now_s = self.now_s()
+            first_check = self.pose_deadline_s is None
+            if first_check:
+                self.pose_deadline_s = now_s + self.pose_timeout_s
+            problem = self.zone_problem(self.motion, self.motion_text,
+                                        quiet=now_s < self.pose_deadline_s)
+            if problem is None:     # no recent pose yet: wait for one (on_timer calls again)
+                if first_check:
+                    self.get_logger().info(
+                        f'Holding {self.motion_text!r} until a recent {self.global_frame} -> '
+                        f'{self.base_frame} pose arrives (up to {self.pose_timeout_s:g} s)')
+                return
             if problem:
                 self.get_logger().warning(f'Rejected command {self.motion_text!r}: {problem}')
                 self.motion = None
@@ -252,8 +268,13 @@ class RobotController(Node):
             return
         self.start_motion()
 
-    def zone_problem(self, motion: Motion, text: str) -> str:
-        """Return why motion may not run in the authorised zone, or '' if it may."""
+    def zone_problem(self, motion: Motion, text: str, quiet: bool = False) -> Optional[str]:
+        """
+        Return why motion may not run in the authorised zone, or '' if it may.
+
+        Without a recent pose: None when quiet (the caller waits for one), else the
+        no-pose refusal, with the reason logged.
+        """
         now_s = self.now_s()
         no_pose = (f'cannot check the authorised zone: no recent {self.global_frame} -> '
                    f'{self.base_frame} pose (is localisation running?)')
@@ -261,10 +282,14 @@ class RobotController(Node):
             pose = self.frames.lookup(self.global_frame, self.base_frame)
             oldest = self.frames.oldest_link(self.global_frame, self.base_frame)
         except TransformError as error:
+            if quiet:
+                return None
             self.get_logger().info(f'No {self.global_frame} -> {self.base_frame} pose: '
                                    f'{error}')
             return no_pose
         if oldest is not None and now_s - oldest[0] > self.pose_timeout_s:
+            if quiet:
+                return None
             self.get_logger().info(
                 f'The {self.global_frame} -> {self.base_frame} pose is '
                 f'{now_s - oldest[0]:.2f} s old (its link {oldest[1]}; pose_timeout_s '
