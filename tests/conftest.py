@@ -21,8 +21,9 @@ from mecanum_bringup.isolation import (
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Header
 
 REPO = Path(__file__).resolve().parents[1]
 RUN_MARKER = 'MECANUM_TEST_RUN'
@@ -289,6 +290,38 @@ class TwistRepeater(LoopThread):
             time.sleep(0.05)
 
 
+#: A process that has not answered a test /clock for this long (wall s) is not waited for.
+CLOCK_ACK_TIMEOUT_S = 1.0
+
+
+class ClockAcks:
+    """The /clock_ack answers of a system's processes, for a test clock to wait for."""
+
+    def __init__(self):
+        self._condition = threading.Condition()
+        self._acked_ns = {}    # participant name: the newest /clock it answered (ns)
+        self._answered = {}    # participant name: monotonic time of its last answer
+
+    def on_ack(self, msg: Header):
+        with self._condition:
+            stamp_ns = msg.stamp.sec * 10 ** 9 + msg.stamp.nanosec
+            self._acked_ns[msg.frame_id] = max(stamp_ns, self._acked_ns.get(msg.frame_id, 0))
+            self._answered[msg.frame_id] = time.monotonic()
+            self._condition.notify_all()
+
+    def wait_for(self, clock_ns: int, context):
+        """Wait until every live participant has answered clock_ns (or went silent)."""
+        with self._condition:
+            while context.ok():
+                now = time.monotonic()
+                owing = [name for name, acked in self._acked_ns.items()
+                         if acked < clock_ns
+                         and now - self._answered[name] < CLOCK_ACK_TIMEOUT_S]
+                if not owing:
+                    return
+                self._condition.wait(timeout=0.05)
+
+
 class TestNode:
     """An rclpy node of the test process, spun in a background thread."""
 
@@ -316,12 +349,22 @@ class TestNode:
         """
         Publish /clock from a thread, one step_s of simulated time per step.
 
-        By default simulated time advances by exactly step_s per step, so it slows down
-        with this process (like a simulator on a loaded machine) and never jumps. With
-        follow_wall_clock it is the elapsed wall time times real_time_factor, for systems
-        that also contain real-time parts (the board emulator).
+        By default simulated time advances by exactly step_s per step, and only once
+        every process of the system on simulated time has answered the last /clock on
+        /clock_ack (node_main.answer_clock: it has taken that /clock, so whatever it had
+        queued before is done), as the simulator's lockstep does. A busy machine (other
+        tests beside this one) therefore slows simulated time down instead of making the
+        system miss it. A process silent for CLOCK_ACK_TIMEOUT_S of wall time (killed,
+        not started yet) is not waited for until it answers again. With
+        follow_wall_clock simulated time is the elapsed wall time times
+        real_time_factor and waits for nobody, for systems that also contain real-time
+        parts (the board emulator).
         """
-        publisher = self.node.create_publisher(Clock, '/clock', QoSProfile(depth=10))
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        publisher = self.node.create_publisher(Clock, '/clock', reliable)
+        acks = ClockAcks()
+        if not follow_wall_clock:
+            self.node.create_subscription(Header, '/clock_ack', acks.on_ack, reliable)
         start = time.monotonic()
 
         def run():
@@ -332,11 +375,16 @@ class TestNode:
                     self.clock_ns += int(step_s * 1e9)
                 msg = Clock()
                 msg.clock.sec, msg.clock.nanosec = divmod(self.clock_ns, 10 ** 9)
+                published = time.monotonic()
                 try:
                     publisher.publish(msg)
                 except Exception:  # noqa: B902 - context shut down
                     return
-                time.sleep(step_s / (1.0 if follow_wall_clock else real_time_factor))
+                if follow_wall_clock:
+                    time.sleep(step_s)
+                    continue
+                acks.wait_for(self.clock_ns, self.context)
+                time.sleep(max(0.0, step_s / real_time_factor - (time.monotonic() - published)))
         threading.Thread(target=run, daemon=True).start()
 
     def wait_sim(self, sim_seconds: float, timeout: float = 60.0):
