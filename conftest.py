@@ -9,7 +9,8 @@ marked ``alone`` come last (see below).
 Tests marked ``alone`` run with no other test beside them. Most tests do not care:
 lockstep simulations wait for the stack, test clocks step on after the test process,
 unit tests measure nothing in time. A few measure the wall clock on purpose (a wall-clock
-simulator's stop budget, a CPU hog the test starts itself); they are marked
+simulator's stop budget, a CPU hog the test starts itself), or are not yet independent
+of the machine's load (the demo's tour, see tests/test_demo.py); they are marked
 ``@pytest.mark.alone`` and take a machine-wide exclusive lock of this run, which every
 other test of the run shares. A waiting ``alone`` test holds the turnstile, so no new
 test starts until it had its turn (the lock prefers the writer). Without xdist every
@@ -64,7 +65,7 @@ def _lock_base(run_id: str) -> Path:
 def pytest_configure(config):
     """Declare the markers; on the xdist controller, name the run (for its lock files)."""
     config.addinivalue_line(
-        'markers', 'alone: measures the wall clock; no other test runs beside it')
+        'markers', 'alone: measures the wall clock or needs a quiet machine; no other test beside it')
     config.addinivalue_line(
         'markers', 'long: runs for a minute or more; started first')
     if getattr(config.option, 'numprocesses', None) and not config.option.testrunuid:

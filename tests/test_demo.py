@@ -16,24 +16,29 @@ Checked here, from the report folder the demo writes:
   topics, with message counts that match the rates and the run's length;
 * from the recorded ground truth: the robot strafed through the strip (body vy, facing
   north), the person came close on the kitchen goals and never touched it;
-* amcl held the robot's pose through the tour (truth.csv and estimate.csv);
-* Ctrl-C during a run stops everything cleanly and still writes the report and a
-  readable recording.
+* amcl held the robot's pose through the tour (truth.csv and estimate.csv).
+
+tests/test_demo_ctrl_c.py checks Ctrl-C during a run.
+
+The tour runs ``alone`` (no other test beside it, see conftest.py): in lockstep the
+verdict should not depend on the machine's load, but it still can (issue 19: a process
+answers a /clock when it takes it, not after the work it starts). On a fresh-clone CI run
+with two test workers (0be48dc), the tour beside the scenario suite (two more simulations
+on 2 cores) got stuck in the strip behind the bed (goal 3: STUCK after 6 recoveries, 61
+collision monitor stops), which no run alone has shown.
 """
 
 import json
 import math
 import os
 from pathlib import Path
-import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / 'src/mecanum_bringup/scenarios'
@@ -80,7 +85,6 @@ def stamp(msg) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
-@pytest.mark.long
 def test_the_demo_reaches_every_goal_without_a_collision(demo):
     result, report = demo
     assert result.returncode == 0, result.stdout[-3000:]
@@ -97,7 +101,6 @@ def test_the_demo_reaches_every_goal_without_a_collision(demo):
     assert 'amcl off by' in result.stdout
 
 
-@pytest.mark.long
 def test_the_recording_reads_back_with_the_mcap_library(demo):
     from mcap.reader import make_reader
     import yaml
@@ -125,7 +128,6 @@ def test_the_recording_reads_back_with_the_mcap_library(demo):
     assert len(scans[0][1].ranges) == 360 and scans[0][1].header.frame_id == 'laser'
 
 
-@pytest.mark.long
 def test_the_robot_strafed_through_the_strip_behind_the_bed(demo):
     _, report = demo
     summary = json.loads((report / 'summary.json').read_text())
@@ -142,7 +144,6 @@ def test_the_robot_strafed_through_the_strip_behind_the_bed(demo):
     assert np.median(np.abs(np.cos(yaw[in_strip]))) < 0.5      # ... while facing north
 
 
-@pytest.mark.long
 def test_the_person_came_close_and_was_never_touched(demo):
     _, report = demo
     summary = json.loads((report / 'summary.json').read_text())
@@ -162,7 +163,6 @@ def test_the_person_came_close_and_was_never_touched(demo):
         assert np.min(distances[during]) < 1.5, f'goal {index + 1} never met the person'
 
 
-@pytest.mark.long
 def test_amcl_held_the_pose_through_the_tour(demo):
     _, report = demo
     truth = np.loadtxt(report / 'truth.csv', delimiter=',', skiprows=1)
@@ -179,33 +179,3 @@ def test_amcl_held_the_pose_through_the_tour(demo):
           f'm; heading max {math.degrees(heading.max()):.1f} deg over {len(estimate)} poses')
     assert position.max() < MAX_POSITION_ERROR_M
     assert heading.max() < MAX_YAW_ERROR_RAD
-
-
-@pytest.mark.long
-def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path, marked_env):
-    from mcap.reader import make_reader
-    process = subprocess.Popen(
-        demo_command(tmp_path, '--scenario', str(SCENARIOS / 'kitchen_run.yaml')),
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=marked_env.env)
-    lines = []
-    deadline = time.monotonic() + 180
-    for line in process.stdout:
-        lines.append(line)
-        if '+10 s:' in line or time.monotonic() > deadline:
-            break
-    assert any('+10 s:' in line for line in lines), ''.join(lines)
-    process.send_signal(signal.SIGINT)
-    rest, _ = process.communicate(timeout=90)
-    output = ''.join(lines) + rest
-    assert process.returncode == 1, output
-    assert 'Ctrl-C: stopping the robot and writing the report' in output
-    report = tmp_path / 'kitchen_run'
-    summary = json.loads((report / 'summary.json').read_text())
-    assert summary['aborted'] == 'interrupted (Ctrl-C)'
-    assert summary['verdict'] == 'fail'
-    assert (report / 'run.png').exists()
-    with open(next((report / 'bag').glob('*.mcap')), 'rb') as stream:
-        assert make_reader(stream).get_summary().statistics.message_count > 1000
-    assert (report / 'bag' / 'metadata.yaml').exists()
-    # Nothing of the run is left.
-    assert marked_env.leftovers() == []

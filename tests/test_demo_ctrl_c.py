@@ -1,0 +1,57 @@
+"""
+Integration: Ctrl-C during the demo stops everything cleanly and keeps the report.
+
+The demo (``make demo``) runs kitchen_run until its first progress line (+10 s), then
+gets SIGINT as from Ctrl-C: it must stop the robot, end with exit code 1 (the run was
+interrupted), and still write summary.json (aborted, fail), run.png and a readable MCAP
+recording, and leave no process behind.
+"""
+
+import json
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[1]
+SCENARIOS = REPO / 'src/mecanum_bringup/scenarios'
+
+
+def demo_command(out: Path, *extra: str):
+    """Return the demo's command line (as `make demo` runs it) writing into out."""
+    return [sys.executable, '-m', 'mecanum_bringup.demo', '--out', str(out), *extra]
+
+
+@pytest.mark.long
+def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path, marked_env):
+    from mcap.reader import make_reader
+    process = subprocess.Popen(
+        demo_command(tmp_path, '--scenario', str(SCENARIOS / 'kitchen_run.yaml')),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=marked_env.env)
+    lines = []
+    deadline = time.monotonic() + 180
+    for line in process.stdout:
+        lines.append(line)
+        if '+10 s:' in line or time.monotonic() > deadline:
+            break
+    assert any('+10 s:' in line for line in lines), ''.join(lines)
+    process.send_signal(signal.SIGINT)
+    rest, _ = process.communicate(timeout=90)
+    output = ''.join(lines) + rest
+    assert process.returncode == 1, output
+    assert 'Ctrl-C: stopping the robot and writing the report' in output
+    report = tmp_path / 'kitchen_run'
+    summary = json.loads((report / 'summary.json').read_text())
+    assert summary['aborted'] == 'interrupted (Ctrl-C)'
+    assert summary['verdict'] == 'fail'
+    assert (report / 'run.png').exists()
+    with open(next((report / 'bag').glob('*.mcap')), 'rb') as stream:
+        assert make_reader(stream).get_summary().statistics.message_count > 1000
+    assert (report / 'bag' / 'metadata.yaml').exists()
+    # Nothing of the run is left.
+    assert marked_env.leftovers() == []
