@@ -58,14 +58,14 @@ def run_exclusively(run_id: str, alone: bool):
 
 
 def _lock_base(run_id: str) -> Path:
-    """The path (without suffix) of run run_id's lock files."""
+    """Return the path (without suffix) of run run_id's lock files."""
     return Path(tempfile.gettempdir()) / f'mecanum_pytest_{run_id}'
 
 
 def pytest_configure(config):
     """Declare the markers; on the xdist controller, name the run (for its lock files)."""
     config.addinivalue_line(
-        'markers', 'alone: measures the wall clock or needs a quiet machine; no other test beside it')
+        'markers', 'alone: measures the wall clock or needs a quiet machine; runs by itself')
     config.addinivalue_line(
         'markers', 'long: runs for a minute or more; started first')
     if getattr(config.option, 'numprocesses', None) and not config.option.testrunuid:

@@ -122,14 +122,14 @@ class MarkedEnvironment:
                         **{RUN_MARKER: self.marker})
 
     def leftovers(self) -> list:
-        """PIDs of live processes started with this environment (or by them)."""
+        """Return the PIDs of live processes started with this environment (or by them)."""
         return processes_with_marker(self.marker)
 
 
 @pytest.fixture
 def marked_env():
     """
-    A MarkedEnvironment for this test's subprocesses (localhost-only discovery).
+    Return a MarkedEnvironment for this test's subprocesses (localhost-only discovery).
 
     Other tests may run beside this one (pytest-xdist), so a test looking for its
     leftover processes looks for its own marker only.
