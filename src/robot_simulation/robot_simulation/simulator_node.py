@@ -38,7 +38,7 @@ once the board has received a command (MOTOR_EFFORTS) after it and every process
 simulated time has answered it on ``/clock_ack`` (std_msgs/Header; mecanum_control
 node_main does it), so a loaded machine slows the run down instead of changing it.
 ``real_time_factor`` is then an upper bound (0: as fast as the stack answers). A part
-silent for ``lockstep_timeout_s`` wall seconds (2.0; a killed or frozen process) is
+silent for ``lockstep_timeout_s`` wall seconds (10.0; a killed or frozen process) is
 waited for no longer, and time runs at real time at most until it answers again; no
 board command for ``lockstep_give_up_s`` (60.0) ends the simulator with an error that
 names it (exit code 1).
@@ -106,7 +106,7 @@ class SimulatorNode(Node):
         self.lockstep = None
         if bool(declare('lockstep', False).value):
             self.lockstep = Lockstep(LockstepConfig(
-                timeout_s=number('lockstep_timeout_s', 2.0),
+                timeout_s=number('lockstep_timeout_s', 10.0),
                 give_up_s=number('lockstep_give_up_s', 60.0)))
         ground_truth_rate_hz = positive('ground_truth_rate_hz',
                                         number('ground_truth_rate_hz', 50.0))
