@@ -239,17 +239,8 @@ class RobotController(Node):
     def begin(self) -> None:
         """Check the waiting motion against the zone (if not yet done), then start it."""
         if not self.accepted:
-            now_s = self.now_s()
-            first_check = self.pose_deadline_s is None
-            if first_check:
-                self.pose_deadline_s = now_s + self.pose_timeout_s
-            problem = self.zone_problem(self.motion, self.motion_text,
-                                        quiet=now_s < self.pose_deadline_s)
+            problem = self.zone_problem()
             if problem is None:     # no recent pose yet: wait for one (on_timer calls again)
-                if first_check:
-                    self.get_logger().info(
-                        f'Holding {self.motion_text!r} until a recent {self.global_frame} -> '
-                        f'{self.base_frame} pose arrives (up to {self.pose_timeout_s:g} s)')
                 return
             if problem:
                 self.get_logger().warning(f'Rejected command {self.motion_text!r}: {problem}')
@@ -268,35 +259,48 @@ class RobotController(Node):
             return
         self.start_motion()
 
-    def zone_problem(self, motion: Motion, text: str, quiet: bool = False) -> Optional[str]:
+    def zone_problem(self) -> Optional[str]:
         """
-        Return why motion may not run in the authorised zone, or '' if it may.
+        Return why the waiting motion may not run in the authorised zone, '' if it may.
 
-        Without a recent pose: None when quiet (the caller waits for one), else the
-        no-pose refusal, with the reason logged.
+        None while it waits for a recent pose (up to pose_timeout_s from its first
+        check); after that, the no-pose refusal, with the reason logged.
         """
         now_s = self.now_s()
-        no_pose = (f'cannot check the authorised zone: no recent {self.global_frame} -> '
-                   f'{self.base_frame} pose (is localisation running?)')
+        first_check = self.pose_deadline_s is None
+        if first_check:
+            self.pose_deadline_s = now_s + self.pose_timeout_s
+        pose, missing = self.recent_pose(now_s)
+        if pose is not None:
+            return zone_refusal(self.zone, (pose.x, pose.y, pose.yaw), self.motion,
+                                self.motion_text, self.footprint_radius_m,
+                                self.zone_margin_m)
+        if now_s < self.pose_deadline_s:
+            if first_check:
+                self.get_logger().info(
+                    f'Holding {self.motion_text!r} until a recent {self.global_frame} -> '
+                    f'{self.base_frame} pose arrives (up to {self.pose_timeout_s:g} s)')
+            return None
+        self.get_logger().info(missing)
+        return (f'cannot check the authorised zone: no recent {self.global_frame} -> '
+                f'{self.base_frame} pose (is localisation running?)')
+
+    def recent_pose(self, now_s: float):
+        """
+        Return (global_frame -> robot_base_frame pose, '') or (None, why there is none).
+
+        None also when the pose's oldest dynamic link is older than pose_timeout_s.
+        """
         try:
             pose = self.frames.lookup(self.global_frame, self.base_frame)
             oldest = self.frames.oldest_link(self.global_frame, self.base_frame)
         except TransformError as error:
-            if quiet:
-                return None
-            self.get_logger().info(f'No {self.global_frame} -> {self.base_frame} pose: '
-                                   f'{error}')
-            return no_pose
+            return None, f'No {self.global_frame} -> {self.base_frame} pose: {error}'
         if oldest is not None and now_s - oldest[0] > self.pose_timeout_s:
-            if quiet:
-                return None
-            self.get_logger().info(
-                f'The {self.global_frame} -> {self.base_frame} pose is '
-                f'{now_s - oldest[0]:.2f} s old (its link {oldest[1]}; pose_timeout_s '
-                f'{self.pose_timeout_s:g})')
-            return no_pose
-        return zone_refusal(self.zone, (pose.x, pose.y, pose.yaw), motion, text,
-                            self.footprint_radius_m, self.zone_margin_m)
+            return None, (f'The {self.global_frame} -> {self.base_frame} pose is '
+                          f'{now_s - oldest[0]:.2f} s old (its link {oldest[1]}; '
+                          f'pose_timeout_s {self.pose_timeout_s:g})')
+        return pose, ''
 
     def now_s(self) -> float:
         """Return the node's clock in seconds (simulated time with use_sim_time)."""
