@@ -22,6 +22,7 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from robot_simulation.lockstep import Lockstep, LockstepConfig
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 
@@ -295,31 +296,30 @@ CLOCK_ACK_TIMEOUT_S = 1.0
 
 
 class ClockAcks:
-    """The /clock_ack answers of a system's processes, for a test clock to wait for."""
+    """
+    The /clock_ack answers of a system's processes, for a test clock to wait for.
+
+    The simulator's own rule (robot_simulation.lockstep.Lockstep, no board): a process
+    that owes the last /clock for CLOCK_ACK_TIMEOUT_S is gone until it answers again.
+    """
 
     def __init__(self):
         self._condition = threading.Condition()
-        self._acked_ns = {}    # participant name: the newest /clock it answered (ns)
-        self._answered = {}    # participant name: monotonic time of its last answer
+        self._lockstep = Lockstep(LockstepConfig(timeout_s=CLOCK_ACK_TIMEOUT_S))
 
     def on_ack(self, msg: Header):
         with self._condition:
-            stamp_ns = msg.stamp.sec * 10 ** 9 + msg.stamp.nanosec
-            self._acked_ns[msg.frame_id] = max(stamp_ns, self._acked_ns.get(msg.frame_id, 0))
-            self._answered[msg.frame_id] = time.monotonic()
+            self._lockstep.ack(msg.frame_id, msg.stamp.sec + msg.stamp.nanosec * 1e-9,
+                               time.monotonic())
             self._condition.notify_all()
 
     def wait_for(self, clock_ns: int, context):
         """Wait until every live participant has answered clock_ns (or went silent)."""
         with self._condition:
-            while context.ok():
-                now = time.monotonic()
-                owing = [name for name, acked in self._acked_ns.items()
-                         if acked < clock_ns
-                         and now - self._answered[name] < CLOCK_ACK_TIMEOUT_S]
-                if not owing:
-                    return
+            self._lockstep.published(clock_ns * 1e-9, time.monotonic())
+            while context.ok() and self._lockstep.waiting_for(time.monotonic()):
                 self._condition.wait(timeout=0.05)
+            self._lockstep.events()   # parts gone and back: nothing to log here
 
 
 class TestNode:
