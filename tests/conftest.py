@@ -351,8 +351,8 @@ class TestNode:
 
         By default simulated time advances by exactly step_s per step, and only once
         every process of the system on simulated time has answered the last /clock on
-        /clock_ack (node_main.answer_clock: it has taken that /clock, so whatever it had
-        queued before is done), as the simulator's lockstep does. A busy machine (other
+        /clock_ack (node_main.ClockAnswer: it has taken that /clock and done the work it
+        starts), as the simulator's lockstep does. A busy machine (other
         tests beside this one) therefore slows simulated time down instead of making the
         system miss it. A process silent for CLOCK_ACK_TIMEOUT_S of wall time (killed,
         not started yet) is not waited for until it answers again. With

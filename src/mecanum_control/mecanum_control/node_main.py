@@ -20,14 +20,19 @@ environment selects the SingleThreadedExecutor instead.
 On simulated time (``use_sim_time``) every spinning process answers each /clock on
 ``/clock_ack`` (std_msgs/Header: stamp = that /clock, frame_id = the process's name), for
 the simulator's lockstep (robot_simulation.lockstep), which waits for it before it steps
-time on; only while someone subscribes, i.e. while a simulator runs in lockstep.
+time on; only while someone subscribes, i.e. while a simulator runs in lockstep. The
+answer goes out once the work that /clock starts in the process is done
+(:class:`ClockAnswer`): every node's clock has taken it and every timer it made due has
+run, so a controller's command for a period is computed in that period whatever the
+machine's load.
 """
 
 from contextlib import contextmanager
+import functools
 import os
 import signal
 import threading
-from typing import Callable, Iterator, List, Optional
+from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -99,25 +104,123 @@ def signals_deferred() -> Iterator[threading.Event]:
         raise KeyboardInterrupt
 
 
-def answer_clock(node: Node, name: str) -> bool:
-    """
-    On simulated time, make node answer each /clock on /clock_ack as ``name``.
+#: Most executor rounds one drain runs (a flood of messages cannot hold the answer back).
+DRAIN_ROUNDS_MAX = 1000
 
-    Returns whether it does (False on the system clock). The answer goes out while the
-    node's executor takes the /clock, after everything it had queued before; one per
-    process is enough (the first node of a container).
+
+class ClockAnswer:
     """
-    if not node.get_parameter('use_sim_time').value:
+    Answers each /clock on /clock_ack once the work it starts in this process is done.
+
+    While a simulator in lockstep subscribes to /clock_ack, a /clock is taken in order:
+
+    1. the messages that came before it, and every message their callbacks publish to
+       this process, are handled first (:meth:`drain`), at the time before;
+    2. then every node's time source takes the new time (each node has its own);
+    3. the timers that time made due run (the executor), then what they publish to this
+       process is handled (drain again);
+    4. then the answer goes out. What the process published for that time is then on its
+       way before the simulator can publish the next /clock.
+
+    So a command computed by a timer goes down a chain of callbacks within a process in the
+    same period whatever the machine's load. The spin loop calls :meth:`after_spin` after
+    each round of the executor. A drain runs the executor without waiting until a round
+    calls no callback (the nodes' subscription and timer callbacks are counted).
+    """
+
+    def __init__(self, nodes: Sequence[Node], name: str):
+        """Advertise /clock_ack as ``name`` and take over the nodes' /clock callbacks."""
+        self.nodes = list(nodes)
+        self.name = name
+        self.calls = 0
+        self._deferred: List[Tuple[Callable, Clock]] = []
+        self._pending: Optional[Clock] = None
+        self._pending_ns = 0
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.publisher = self.nodes[0].create_publisher(Header, '/clock_ack', reliable)
+        self._instrument()
+
+    def _instrument(self) -> None:
+        """Count the nodes' callbacks; hold each /clock for :meth:`after_spin` (new ones too)."""
+        for node in self.nodes:
+            for entity in (*node.subscriptions, *node.timers):
+                callback = entity.callback
+                if getattr(callback, 'clock_answer', None) is self:
+                    continue
+                if (getattr(entity, 'topic_name', None) == '/clock'
+                        and not getattr(entity, 'raw', False)):   # raw: a recorder's
+                    wrapped = self._deferring(callback)
+                else:
+                    wrapped = self._counting(callback)
+                wrapped.clock_answer = self
+                entity.callback = wrapped
+
+    # functools.wraps: rclpy reads the callback's signature (through __wrapped__) to
+    # decide whether to pass a subscription's MessageInfo too.
+    def _counting(self, callback: Callable) -> Callable:
+        @functools.wraps(callback)
+        def counted(*args):
+            self.calls += 1
+            return callback(*args)
+        return counted
+
+    def _deferring(self, callback: Callable) -> Callable:
+        @functools.wraps(callback)
+        def deferred(msg: Clock, *info):
+            self.calls += 1
+            if self.publisher.get_subscription_count() == 0:
+                return callback(msg, *info)     # not in lockstep: take it at once
+            self._deferred.append((functools.partial(callback, msg, *info), msg))
+        return deferred
+
+    def drain(self, executor) -> None:
+        """Run the executor without waiting until a round calls no callback."""
+        for _ in range(DRAIN_ROUNDS_MAX):
+            before = self.calls
+            executor.spin_once(timeout_sec=0.0)
+            if self.calls == before:
+                return
+
+    def work_left(self) -> bool:
+        """Whether a node's clock is behind the pending /clock or a timer is still due."""
+        for node in self.nodes:
+            if node.get_clock().now().nanoseconds < self._pending_ns:
+                return True
+            for timer in node.timers:
+                left_ns = timer.time_until_next_call()   # None: cancelled
+                if left_ns is not None and left_ns <= 0:
+                    return True
         return False
-    reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-    publisher = node.create_publisher(Header, '/clock_ack', reliable)
 
-    def on_clock(msg: Clock) -> None:
-        if publisher.get_subscription_count() > 0:
-            publisher.publish(Header(stamp=msg.clock, frame_id=name))
+    def after_spin(self, executor) -> None:
+        """Take a held /clock (1, 2 above) or answer the pending one once its work is done."""
+        if self._deferred:
+            self.drain(executor)
+            deferred, self._deferred = self._deferred, []
+            for take, _ in deferred:
+                take()
+            self._pending = deferred[-1][1]
+            self._pending_ns = self._pending.clock.sec * 10 ** 9 + self._pending.clock.nanosec
+            self._instrument()
+        if self._pending is None or self.work_left():
+            return
+        self.drain(executor)
+        if self._deferred or self.work_left():
+            return
+        self.publisher.publish(Header(stamp=self._pending.clock, frame_id=self.name))
+        self._pending = None
 
-    node.create_subscription(Clock, '/clock', on_clock, reliable)
-    return True
+
+def answer_clock(nodes: Sequence[Node], name: str) -> Optional[ClockAnswer]:
+    """
+    On simulated time, return the :class:`ClockAnswer` of nodes as ``name``.
+
+    None on the system clock (the first node's ``use_sim_time`` false). One per process
+    is enough.
+    """
+    if not nodes[0].get_parameter('use_sim_time').value:
+        return None
+    return ClockAnswer(nodes, name)
 
 
 def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
@@ -130,11 +233,13 @@ def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
     executor = executor or make_executor(node.context)
     for each in (node, *more_nodes):
         executor.add_node(each)
-    answer_clock(node, node.get_name() if not more_nodes
-                 else f'{node.get_name()} (+{len(more_nodes)} nodes)')
+    answer = answer_clock((node, *more_nodes), node.get_name() if not more_nodes
+                          else f'{node.get_name()} (+{len(more_nodes)} nodes)')
     with signals_deferred() as stop:
         while node.context.ok() and not stop.is_set():
             executor.spin_once(timeout_sec=WAKE_PERIOD_S)
+            if answer is not None:
+                answer.after_spin(executor)
 
 
 def run_node(node_factory: Callable[[], Node], name: str,

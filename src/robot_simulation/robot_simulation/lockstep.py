@@ -9,7 +9,9 @@ has answered that /clock:
   published (hardware_interface sends velocity_controller's efforts for the period);
 - every participant, i.e. every process of the stack on simulated time: its
   ``/clock_ack`` (std_msgs/Header: stamp = the /clock it took, frame_id = its name)
-  says it has taken that /clock, so whatever it had queued before it is done.
+  says it has taken that /clock and done the work it starts (mecanum_control
+  node_main.ClockAnswer: the messages before it, the timers it made due and the
+  callbacks they set off within the process).
 
 A stalled stack therefore stalls simulated time instead of losing it. A part silent for
 ``timeout_s`` of wall time since the /clock it should answer is *gone* (a killed or

@@ -1,0 +1,194 @@
+"""
+Integration: a process answers a /clock only once the work that /clock starts is done.
+
+mecanum_control.node_main.ClockAnswer with real rclpy (EventsExecutor) and DDS, in one
+test process: a "stack" context (two nodes, spun as node_main.spin_waking does) and a
+"simulator" context that publishes /clock and listens to /clock_ack, as the simulator's
+lockstep does.
+
+1. A timer made due by a /clock starts a chain of four callbacks through both nodes:
+   when the answer to that /clock arrives, the whole chain has run, at that time.
+2. A message that came before a /clock, and the message its callback publishes within
+   the process, are handled at the time before that /clock (the chain finishes first).
+"""
+
+import threading
+import time
+
+from builtin_interfaces.msg import Time
+from mecanum_control.node_main import answer_clock, make_executor
+import pytest
+import rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Header, Int64
+
+pytestmark = pytest.mark.integration
+
+PERIOD_NS = 20_000_000     # 0.02 s of simulated time per /clock, the simulator's default
+RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class Stack:
+    """Two nodes on simulated time in one executor, answering /clock via ClockAnswer."""
+
+    def __init__(self, domain_id: int):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        sim_time = [Parameter('use_sim_time', value=True)]
+        self.first = Node('chain_start', context=self.context, parameter_overrides=sim_time)
+        self.second = Node('chain_rest', context=self.context, parameter_overrides=sim_time)
+        self.chain_done = []     # (simulated time ns when the chain's end ran, data)
+        self.forwarded = []      # (simulated time ns when 'forwarded' was handled, data)
+        # Chain 1: timer (first) -> a (second) -> b (first) -> c (second) -> record.
+        self.pub_a = self.first.create_publisher(Int64, 'a', RELIABLE)
+        self.pub_b = self.second.create_publisher(Int64, 'b', RELIABLE)
+        self.pub_c = self.first.create_publisher(Int64, 'c', RELIABLE)
+        self.second.create_subscription(Int64, 'a', lambda m: self.pub_b.publish(m), RELIABLE)
+        self.first.create_subscription(Int64, 'b', lambda m: self.pub_c.publish(m), RELIABLE)
+        self.second.create_subscription(Int64, 'c', self._on_chain_end, RELIABLE)
+        self.first.create_timer(PERIOD_NS * 1e-9, self._on_timer)
+        # Chain 2: 'outside' from the simulator -> 'forwarded' within the process -> record.
+        self.pub_forwarded = self.second.create_publisher(Int64, 'forwarded', RELIABLE)
+        self.first.create_subscription(
+            Int64, 'outside', lambda m: self.pub_forwarded.publish(m), RELIABLE)
+        self.second.create_subscription(Int64, 'forwarded', self._on_forwarded, RELIABLE)
+        self.executor = make_executor(self.context)
+        for node in (self.first, self.second):
+            self.executor.add_node(node)
+        self.answer = answer_clock((self.first, self.second), 'stack')
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _now_ns(self, node: Node) -> int:
+        return node.get_clock().now().nanoseconds
+
+    def _on_timer(self):
+        self.pub_a.publish(Int64(data=self._now_ns(self.first)))
+
+    def _on_chain_end(self, msg: Int64):
+        self.chain_done.append((self._now_ns(self.second), msg.data))
+
+    def _on_forwarded(self, msg: Int64):
+        self.forwarded.append((self._now_ns(self.second), msg.data))
+
+    def _spin(self):
+        while self.context.ok() and not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+            self.answer.after_spin(self.executor)
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.executor.shutdown()
+        for node in (self.first, self.second):
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+class Simulator:
+    """Publishes /clock and 'outside'; notes each /clock_ack and what the stack had done."""
+
+    def __init__(self, domain_id: int, stack: Stack):
+        self.stack = stack
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = Node('simulator', context=self.context)
+        self.clock_pub = self.node.create_publisher(Clock, '/clock', RELIABLE)
+        self.outside_pub = self.node.create_publisher(Int64, 'outside', RELIABLE)
+        self.acked = threading.Condition()
+        self.acks = {}    # acked /clock ns -> the stack's chain_done at that moment
+        self.node.create_subscription(Header, '/clock_ack', self._on_ack, RELIABLE)
+        self.executor = make_executor(self.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _on_ack(self, msg: Header):
+        with self.acked:
+            self.acks[msg.stamp.sec * 10 ** 9 + msg.stamp.nanosec] = list(
+                self.stack.chain_done)
+            self.acked.notify_all()
+
+    def _spin(self):
+        while self.context.ok() and not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def publish_clock(self, clock_ns: int):
+        sec, nanosec = divmod(clock_ns, 10 ** 9)
+        self.clock_pub.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+
+    def wait_for_ack(self, clock_ns: int, timeout_s: float = 10.0) -> bool:
+        with self.acked:
+            return self.acked.wait_for(lambda: clock_ns in self.acks, timeout_s)
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def stack_and_simulator(ros_env, monkeypatch):
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    domain_id = int(ros_env['ROS_DOMAIN_ID'])
+    stack = Stack(domain_id)
+    simulator = Simulator(domain_id, stack)
+    try:
+        yield stack, simulator
+    finally:
+        simulator.close()
+        stack.close()
+
+
+def start_lockstep(stack: Stack, simulator: Simulator) -> int:
+    """Publish /clock until the stack answers (discovery done); return the answered ns."""
+    clock_ns = PERIOD_NS
+    deadline = time.monotonic() + 20.0
+    while True:
+        simulator.publish_clock(clock_ns)
+        if simulator.wait_for_ack(clock_ns, timeout_s=0.2):
+            return clock_ns
+        assert time.monotonic() < deadline, 'the stack never answered /clock'
+        clock_ns += PERIOD_NS
+
+
+def test_the_answer_comes_after_the_chain_a_timer_starts(stack_and_simulator):
+    stack, simulator = stack_and_simulator
+    clock_ns = start_lockstep(stack, simulator)
+    first_checked = clock_ns + PERIOD_NS
+    for _ in range(100):
+        clock_ns += PERIOD_NS
+        simulator.publish_clock(clock_ns)
+        assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
+    for acked_ns in range(first_checked, clock_ns + 1, PERIOD_NS):
+        done = simulator.acks[acked_ns]
+        # The timer ran at acked_ns and its chain of four callbacks ended at that time,
+        # before the answer went out.
+        assert (acked_ns, acked_ns) in done, (
+            f'answered /clock {acked_ns} before the chain its timer started had run: '
+            f'chain ends so far {done[-3:]}')
+
+
+def test_messages_before_a_clock_are_handled_at_the_time_before(stack_and_simulator):
+    stack, simulator = stack_and_simulator
+    clock_ns = start_lockstep(stack, simulator)
+    for number in range(50):
+        # 'outside' goes out just before the next /clock, without waiting: the stack
+        # must finish it (and what its callback publishes) at the time before.
+        simulator.outside_pub.publish(Int64(data=clock_ns))
+        clock_ns += PERIOD_NS
+        simulator.publish_clock(clock_ns)
+        assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
+    deadline = time.monotonic() + 5.0
+    while len(stack.forwarded) < 50 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert len(stack.forwarded) == 50
+    late = [(handled, sent) for handled, sent in stack.forwarded if handled != sent]
+    assert not late, f'handled after the next /clock (handled ns, sent at ns): {late[:5]}'
