@@ -12,6 +12,13 @@ records every stop of the chain (``collision_monitor_state``, ``zone_guard_state
 every refusal or early stop of robot_controller, where the robot then was. Its clock is
 the simulator's (/clock). It spins in a background thread; the runner calls
 its methods from the main thread.
+
+In lockstep (:meth:`join_lockstep`) the runner is one of the parts simulated time waits
+for: each /clock is held in the spin thread until the main thread has looked at that time
+(:meth:`tick`), then answered on ``/clock_ack``. The main thread therefore sees, at each
+simulated time, exactly what came in before that /clock (the spin thread takes nothing
+after it meanwhile) and its commands for that time go out before time steps on: a step
+starts and ends at the same simulated time whatever the machine's load.
 """
 
 import functools
@@ -20,6 +27,7 @@ import threading
 import time
 from typing import Callable, Dict, List, Optional, Tuple
 
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from mecanum_bringup.scenario import command_sources
 from mecanum_control.node_main import make_executor
@@ -29,8 +37,9 @@ import numpy as np
 import rclpy
 from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile
-from std_msgs.msg import String, UInt32
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Header, String, UInt32
 
 #: The command chain's stages whose STOP states are recorded as safety events.
 SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
@@ -38,6 +47,11 @@ SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
 GOAL_RESEND_S = 2.0
 #: Wall seconds to wait for an answer at all.
 ANSWER_TIMEOUT_S = 30.0
+#: Wall seconds :meth:`ScenarioDriver.tick` waits for time to go on (then the runner looks
+#: at the system again); outside lockstep, the time it sleeps.
+TICK_WAIT_S = 0.02
+#: The runner's name on /clock_ack.
+LOCKSTEP_NAME = 'scenario_runner'
 
 Poll = Callable[[], float]
 
@@ -86,6 +100,16 @@ class ScenarioDriver:
                             for topic in command_sources().values()}
         self.command_pub = node.create_publisher(String, 'control_command', 10)
         self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
+        # Lockstep: the /clock the spin thread holds (arrived), the time the main thread
+        # is at (held) and the last one it let go (released); nanoseconds.
+        self._time = threading.Condition()
+        self._in_lockstep = False
+        self._arrived_ns: Optional[int] = None
+        self._held_ns: Optional[int] = None
+        self._released_ns = -1
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self._ack_pub = node.create_publisher(Header, '/clock_ack', reliable)
+        node.create_subscription(Clock, '/clock', self._on_clock, reliable)
         self.executor = make_executor(self.context)
         self.executor.add_node(node)
         self._closing = threading.Event()
@@ -99,6 +123,62 @@ class ScenarioDriver:
             except Exception:  # noqa: B902 - shutting down mid-spin
                 if self.context.ok() and not self._closing.is_set():
                     raise
+
+    # --- lockstep ------------------------------------------------------------------------
+
+    def _on_clock(self, msg: Clock) -> None:
+        """In lockstep, hold this /clock (spin thread) until the main thread let it go."""
+        clock_ns = msg.clock.sec * 10 ** 9 + msg.clock.nanosec
+        with self._time:
+            if not self._in_lockstep:
+                return
+            self._arrived_ns = clock_ns
+            self._time.notify_all()
+            self._time.wait_for(lambda: not self._in_lockstep or self._closing.is_set()
+                                or self._released_ns >= clock_ns)
+
+    def join_lockstep(self) -> None:
+        """Take part in the lockstep from the next /clock on (see the module docstring)."""
+        with self._time:
+            self._in_lockstep = True
+            self._arrived_ns = self._held_ns = None
+            self._released_ns = -1
+
+    def leave_lockstep(self) -> None:
+        """Stop taking part: let go of any held /clock and no longer answer."""
+        with self._time:
+            self._in_lockstep = False
+            self._held_ns = None
+            self._time.notify_all()
+
+    def holding_time(self) -> bool:
+        """Whether the runner takes part in the lockstep and holds a /clock."""
+        with self._time:
+            return self._in_lockstep and self._held_ns is not None
+
+    def tick(self) -> None:
+        """
+        Done with the current simulated time: let it go and wait for the next one.
+
+        In lockstep: answers the held time on /clock_ack, lets the spin thread go on
+        and waits up to TICK_WAIT_S of wall time for the next /clock (returns without one,
+        so the caller can look at the system). Outside lockstep: sleeps TICK_WAIT_S.
+        """
+        with self._time:
+            if not self._in_lockstep:
+                self._time.wait(TICK_WAIT_S)
+                return
+            held = self._held_ns
+            if held is not None and self._released_ns < held:
+                self._released_ns = held
+                sec, nanosec = divmod(held, 10 ** 9)
+                self._ack_pub.publish(Header(stamp=Time(sec=sec, nanosec=nanosec),
+                                             frame_id=LOCKSTEP_NAME))
+                self._time.notify_all()
+            if self._time.wait_for(
+                    lambda: self._arrived_ns is not None
+                    and (held is None or self._arrived_ns > held), TICK_WAIT_S):
+                self._held_ns = self._arrived_ns
 
     # --- what it records ---------------------------------------------------------------
 
@@ -157,7 +237,10 @@ class ScenarioDriver:
             return list(self._safety_events)
 
     def sim_now(self) -> Optional[float]:
-        """Return the simulated time (s), None before the first /clock."""
+        """Return the simulated time (s) the runner is at, None before the first /clock."""
+        with self._time:
+            if self._in_lockstep and self._held_ns is not None:
+                return self._held_ns * 1e-9
         nanoseconds = self.node.get_clock().now().nanoseconds
         return nanoseconds * 1e-9 if nanoseconds > 0 else None
 
@@ -232,7 +315,7 @@ class ScenarioDriver:
             attempt_end = min(deadline, time.monotonic() + GOAL_RESEND_S)
             while not future.done() and time.monotonic() < attempt_end:
                 poll()
-                time.sleep(0.02)
+                self.tick()
             if future.done():
                 return future.result()
         return None
@@ -243,7 +326,28 @@ class ScenarioDriver:
         deadline = time.monotonic() + 5.0
         while not future.done() and time.monotonic() < deadline:
             poll()
-            time.sleep(0.02)
+            self.tick()
+
+    def reach_robot_controller(self, poll: Poll) -> None:
+        """
+        Make sure text commands reach robot_controller at once: send 'stop' until answered.
+
+        A message sent before its reader has matched the writer is dropped and sent again
+        only on the writer's next heartbeat, wall seconds later (DDS discovery matches
+        the two sides separately), so a scenario's first command could start a variable
+        time late. An answer to 'stop' (harmless: the robot stands) shows both ways work.
+        """
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while True:
+            statuses = self.send_command('stop', poll)
+            resend = time.monotonic() + GOAL_RESEND_S / 4.0
+            while time.monotonic() < resend:
+                if 'done: stop' in statuses():
+                    return
+                if time.monotonic() > deadline:
+                    raise RuntimeError('robot_controller does not answer on control_status')
+                poll()
+                self.tick()
 
     def send_command(self, text: str, poll: Poll) -> Callable[[], List[str]]:
         """
@@ -257,7 +361,7 @@ class ScenarioDriver:
             if time.monotonic() > deadline:
                 raise RuntimeError('robot_controller is not listening on control_command')
             poll()
-            time.sleep(0.05)
+            self.tick()
         with self._lock:
             seen = [len(self._statuses)]
         self.command_pub.publish(String(data=text))
@@ -280,6 +384,7 @@ class ScenarioDriver:
     def close(self) -> None:
         """Stop spinning and shut the node's context down."""
         self._closing.set()
+        self.leave_lockstep()
         self._thread.join(timeout=5.0)
         self.executor.shutdown()
         self.node.destroy_node()

@@ -307,7 +307,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
         try:
             from mecanum_bringup.scenario_driver import ScenarioDriver
             driver = ScenarioDriver(lease.domain_id)
-            _wait_until_ready(system, driver, say)
+            _wait_until_ready(scenario, system, driver, say)
             say(f'{scenario.name}: system up in {time.monotonic() - started:.0f} s '
                 f'(ROS_DOMAIN_ID {lease.domain_id}); {len(scenario.steps)} steps')
             if options.on_system:
@@ -352,7 +352,8 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     return result
 
 
-def _wait_until_ready(system: SystemProcess, driver, say: Progress) -> None:
+def _wait_until_ready(scenario: Scenario, system: SystemProcess, driver,
+                      say: Progress) -> None:
     deadline = time.monotonic() + READY_TIMEOUT_S
 
     def not_ready() -> str:
@@ -371,6 +372,8 @@ def _wait_until_ready(system: SystemProcess, driver, say: Progress) -> None:
     _wait_for(lambda: len(driver.estimate_track()) > 0, system, deadline,
               lambda: 'no localisation estimate on amcl_pose (is amcl running, with its '
                       'initial pose?)', 0.05)
+    if any(isinstance(step, CommandStep) for step in scenario.steps):
+        driver.reach_robot_controller(lambda: _check(system))
 
 
 def _wait_for(ready: Callable[[], bool], system: SystemProcess, deadline: float,
@@ -393,9 +396,15 @@ def _check(system: SystemProcess) -> None:
 def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRecord,
                options: RunOptions, say: Progress) -> None:
     frozen: List[Tuple[int, float]] = []   # (pid, simulated time to resume it)
+    if options.lockstep:
+        driver.join_lockstep()
+        while not driver.holding_time():
+            _check(system)
+            driver.tick()
     try:
         _run_each_step(scenario, driver, system, options, say, record, frozen)
     finally:
+        driver.leave_lockstep()
         for pid, _ in frozen:
             _resume(pid)
 
@@ -468,7 +477,7 @@ def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
         if time.monotonic() - asked > RESULT_REQUEST_S:
             futures.append(handle.get_result_async())
             asked = time.monotonic()
-        time.sleep(0.02)
+        driver.tick()
     answer = next(future for future in futures if future.done()).result().result
     result.error_code, result.error_message = int(answer.error_code), answer.error_msg
     if result.error_code == 0:
@@ -507,7 +516,7 @@ def _command(step: CommandStep, driver, result: StepResult, poll) -> None:
             driver.send_command('stop', poll)
             result.outcome = 'timeout'
             return
-        time.sleep(0.02)
+        driver.tick()
 
 
 def _cmd_vel(step: CmdVelStep, driver, result: StepResult, poll) -> None:
@@ -520,7 +529,7 @@ def _cmd_vel(step: CmdVelStep, driver, result: StepResult, poll) -> None:
         if now >= next_s:
             driver.publish_twist(step.vx, step.vy, step.wz, step.topic)
             next_s = now + CMD_VEL_PERIOD_S
-        time.sleep(0.005)
+        driver.tick()
     driver.publish_twist(0.0, 0.0, 0.0, step.topic)
     result.outcome = 'done'
 
@@ -538,7 +547,7 @@ def _freeze(step: FreezeStep, system: 'SystemProcess', result: StepResult,
 
 def _wait(duration_s: float, driver, result: StepResult, poll) -> None:
     while poll() < result.start_s + duration_s:
-        time.sleep(0.02)
+        driver.tick()
     result.outcome = 'done'
 
 
