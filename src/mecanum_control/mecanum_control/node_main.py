@@ -108,6 +108,8 @@ def signals_deferred() -> Iterator[threading.Event]:
 DRAIN_ROUNDS_MAX = 1000
 #: Every how many /clock messages ClockAnswer looks for new subscriptions and timers.
 INSTRUMENT_EVERY_CLOCKS = 50
+#: Wall seconds between two /clock_alive messages of a process.
+ALIVE_PERIOD_S = 1.0
 
 
 class ClockAnswer:
@@ -130,6 +132,11 @@ class ClockAnswer:
     calls no callback (the nodes' subscription and timer callbacks are counted); it is
     skipped when no callback has run since the queue was last seen empty (an empty round
     of the EventsExecutor costs ~80 us).
+
+    A thread of its own says the process is alive on ``/clock_alive`` (std_msgs/Header,
+    frame_id = its name) every ALIVE_PERIOD_S, also while a callback runs for long (a
+    first JIT compile, a loop closure): the lockstep waits for a busy process and gives
+    up only on a silent one (frozen or dead).
     """
 
     def __init__(self, nodes: Sequence[Node], name: str):
@@ -145,7 +152,19 @@ class ClockAnswer:
         self._pending_ns = 0
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.publisher = self.nodes[0].create_publisher(Header, '/clock_ack', reliable)
+        self.alive_publisher = self.nodes[0].create_publisher(Header, '/clock_alive', reliable)
         self._instrument()
+        threading.Thread(target=self._say_alive, name='clock_alive', daemon=True).start()
+
+    def _say_alive(self) -> None:
+        """Publish /clock_alive every ALIVE_PERIOD_S while anyone listens (thread)."""
+        context, stop = self.nodes[0].context, threading.Event()
+        while context.ok() and not stop.wait(ALIVE_PERIOD_S):
+            try:
+                if self.alive_publisher.get_subscription_count() > 0:
+                    self.alive_publisher.publish(Header(frame_id=self.name))
+            except Exception:  # noqa: B902 - the node is being destroyed: stop saying it
+                return
 
     def _instrument(self) -> None:
         """Count the nodes' callbacks; hold each /clock for :meth:`after_spin` (new ones too)."""

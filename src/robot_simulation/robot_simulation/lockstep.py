@@ -13,9 +13,15 @@ has answered that /clock:
   node_main.ClockAnswer: the messages before it, the timers it made due and the
   callbacks they set off within the process).
 
+Every participant also says it is alive once a second of wall time on ``/clock_alive``
+(std_msgs/Header, frame_id = its name; node_main.ClockAnswer sends it from a thread of
+its own), also while one of its callbacks runs for long (a first JIT compile, a loop
+closure on a loaded machine): such a part is waited for, up to ``give_up_s``.
+
 A stalled stack therefore stalls simulated time instead of losing it. A part silent for
-``timeout_s`` of wall time since the /clock it should answer is *gone* (a killed or
-frozen process, which the launch runner restarts): it holds time back no longer, and
+``timeout_s`` of wall time since the /clock it should answer, and not alive either, is
+*gone* (a killed or frozen process, which the launch runner restarts; a part busy with
+one /clock for ``give_up_s`` is gone too): it holds time back no longer, and
 while any part is gone, or before the board has answered at all (the stack is still
 starting), the simulation runs at real time at most. A gone part that answers again
 takes part again. The board silent for ``give_up_s`` of wall time ends the run with
@@ -64,6 +70,7 @@ class _Part:
 
     answered_sim_s: float = -math.inf
     answered_wall_s: float = -math.inf
+    alive_wall_s: float = -math.inf
     gone: bool = False
 
 
@@ -120,6 +127,12 @@ class Lockstep:
         part.answered_sim_s = max(part.answered_sim_s, sim_s)
         part.answered_wall_s = wall_s
 
+    def alive(self, name: str, wall_s: float) -> None:
+        """Note participant name's /clock_alive at wall_s (ignored before it takes part)."""
+        part = self._participants.get(name)
+        if part is not None:
+            part.alive_wall_s = max(part.alive_wall_s, wall_s)
+
     # --- outputs -----------------------------------------------------------------------
     def waiting_for(self, wall_s: float) -> List[str]:
         """
@@ -140,21 +153,27 @@ class Lockstep:
                         f'time (since simulated time {board.answered_sim_s:.2f} s): the '
                         'stack is not running; ending the simulation')
             elif self.board_commands == self._board_count_at_clock:
-                self._owing(BOARD, board, waited_s, missing)
+                self._owing(BOARD, board, waited_s, waited_s, missing)
         for name, part in self._participants.items():
             if not part.gone and part.answered_sim_s < self._clock_sim_s - 1e-9:
-                self._owing(name, part, waited_s, missing)
+                silent_s = min(waited_s, wall_s - part.alive_wall_s)
+                self._owing(name, part, waited_s, silent_s, missing)
         return missing
 
-    def _owing(self, name: str, part: _Part, waited_s: float, missing: List[str]) -> None:
-        """Take a part that owes the last /clock: gone after timeout_s, else awaited."""
-        if waited_s >= self.config.timeout_s:
-            part.gone = True
-            self._events.append(
-                f'lockstep: {name} has not answered /clock {self._clock_sim_s:.2f} s for '
-                f'{waited_s:.1f} s: going on without it, at real time at most')
+    def _owing(self, name: str, part: _Part, waited_s: float, silent_s: float,
+               missing: List[str]) -> None:
+        """Take a part that owes the last /clock: gone when silent or busy too long."""
+        if silent_s >= self.config.timeout_s:
+            why = f'has not answered /clock {self._clock_sim_s:.2f} s for {waited_s:.1f} s'
+        elif waited_s >= self.config.give_up_s:
+            why = (f'has been busy with /clock {self._clock_sim_s:.2f} s for {waited_s:.1f} s '
+                   '(alive, but not answering)')
         else:
             missing.append(name)
+            return
+        part.gone = True
+        self._events.append(f'lockstep: {name} {why}: going on without it, at real time '
+                            'at most')
 
     @property
     def free_running(self) -> bool:

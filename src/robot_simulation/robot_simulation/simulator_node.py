@@ -36,7 +36,9 @@ Lockstep (``lockstep``, false): simulated time waits for the stack, as PX4's SIT
 lockstep does (robot_simulation.lockstep): after each /clock the simulator steps on only
 once the board has received a command (MOTOR_EFFORTS) after it and every process on
 simulated time has answered it on ``/clock_ack`` (std_msgs/Header; mecanum_control
-node_main does it), so a loaded machine slows the run down instead of changing it.
+node_main does it), so a loaded machine slows the run down instead of changing it. A
+process that says it is alive on ``/clock_alive`` (once a second) is waited for while
+it is busy, up to ``lockstep_give_up_s``.
 ``real_time_factor`` is then an upper bound (0: as fast as the stack answers). A part
 silent for ``lockstep_timeout_s`` wall seconds (10.0; a killed or frozen process) is
 waited for no longer, and time runs at real time at most until it answers again; no
@@ -156,6 +158,8 @@ class SimulatorNode(Node):
             reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
             self.ack_sub = self.create_subscription(Header, '/clock_ack', self.on_clock_ack,
                                                     reliable)
+            self.alive_sub = self.create_subscription(
+                Header, '/clock_alive', self.on_clock_alive, reliable)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
         self.movers_pub = self.create_publisher(PoseArray, 'ground_truth/moving_obstacles', 10)
@@ -187,6 +191,10 @@ class SimulatorNode(Node):
         """Take a process's answer to a /clock (lockstep)."""
         self.lockstep.ack(msg.frame_id, msg.stamp.sec + msg.stamp.nanosec * 1e-9,
                           time.monotonic())
+
+    def on_clock_alive(self, msg: Header) -> None:
+        """Take a process's sign of life (lockstep: a busy process is waited for)."""
+        self.lockstep.alive(msg.frame_id, time.monotonic())
 
     def advance(self) -> None:
         """One physics step, then everything due at the new simulated time."""

@@ -66,6 +66,39 @@ def test_a_silent_part_is_gone_after_the_timeout_and_takes_part_again_when_it_an
     assert gate.waiting_for(3.5) == ['amcl']
 
 
+def test_a_busy_part_that_is_alive_is_waited_for_up_to_give_up():
+    gate = started(timeout_s=2.0, give_up_s=10.0)
+    gate.ack('slam_toolbox', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    gate.board_command(wall_s=1.0)
+    for wall_s in (2.0, 3.0, 4.0, 5.0):        # busy in a long callback, alive each second
+        gate.alive('slam_toolbox', wall_s)
+    assert gate.waiting_for(5.5) == ['slam_toolbox']     # 4.5 s > timeout_s, but alive
+    assert not gate.free_running
+    assert gate.waiting_for(7.0) == []                   # 2 s without a sign: gone
+    assert any('slam_toolbox has not answered /clock 0.02 s for 6.0 s' in event
+               for event in gate.events())
+
+
+def test_a_part_alive_but_busy_past_give_up_is_gone():
+    gate = started(timeout_s=2.0, give_up_s=10.0)
+    gate.ack('slam_toolbox', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    gate.board_command(wall_s=1.0)
+    for second in range(2, 12):
+        gate.alive('slam_toolbox', float(second))
+    assert gate.waiting_for(10.9) == ['slam_toolbox']
+    assert gate.waiting_for(11.0) == []
+    assert any('slam_toolbox has been busy with /clock 0.02 s for 10.0 s' in event
+               for event in gate.events())
+
+
+def test_alive_before_taking_part_is_ignored():
+    gate = started()
+    gate.alive('amcl', wall_s=0.5)
+    assert gate.participants == []
+
+
 def test_a_board_silent_past_give_up_ends_the_run_naming_it():
     gate = started(timeout_s=1.0, give_up_s=5.0)
     gate.published(0.02, wall_s=0.5)
