@@ -25,6 +25,9 @@ when commands stop for ``board_command_timeout_ms`` (motor_params.yaml). The lin
 timers and timeouts run on the steady clock (a real board lives in real time even when
 ROS time stalls), or on ROS time with ``link_clock: ros`` (a board inside the simulator).
 A board that never answers is retried quietly after one error message.
+A reader thread takes the board's frames as they come; in the simulator's lockstep,
+:meth:`HardwareInterface.catch_up` (called by node_main.ClockAnswer before each /clock)
+takes whatever the board wrote before that /clock, so it is handled in its own period.
 """
 
 import errno
@@ -105,6 +108,7 @@ class HardwareInterface(Node):
 
         self._lock = threading.Lock()  # state shared with the serial reader thread
         self._io_lock = threading.Lock()  # one writer at a time; no close during a write
+        self._read_lock = threading.Lock()  # one reader of the line at a time (catch_up)
         self._serial: Optional[serial.Serial] = None
         self._connected_at = 0.0
         self._last_frame_at = 0.0
@@ -357,17 +361,44 @@ class HardwareInterface(Node):
                 time.sleep(0.02)
                 continue
             try:
-                data = read_available(port.fd, READ_WAIT_S)
+                readable, _, _ = select.select([port.fd], [], [], READ_WAIT_S)
             except (OSError, TypeError, ValueError) as error:
                 self._lose_link(port, f'read failed: {error}')
                 continue
+            if readable:
+                self._read_once(port)
+
+    def _read_once(self, port) -> bool:
+        """Read and handle what the line has now, without waiting; return whether any."""
+        with self._read_lock:
+            try:
+                data = read_available(port.fd, 0.0)
+            except (OSError, TypeError, ValueError) as error:
+                self._lose_link(port, f'read failed: {error}')
+                return False
             if not data:
-                continue
+                return False
             try:
                 self._receive(data)
             except Exception as error:  # noqa: B902 - never let the reader die silently
                 self.get_logger().error(f'Unexpected error handling board data: {error!r}')
                 self._lose_link(port, f'internal error: {error!r}')
+            return True
+
+    def catch_up(self) -> bool:
+        """
+        Take in every frame the board has sent so far; return whether there were any.
+
+        On simulated time node_main.ClockAnswer calls it before the process takes the next
+        /clock: the simulated board wrote the frames of the period before it published
+        that /clock, so they are handled at the time before, whatever the reader thread's
+        luck (it may have taken some already).
+        """
+        port = self._serial
+        took = False
+        while port is not None and port is self._serial and self._read_once(port):
+            took = True
+        return took
 
     def _receive(self, data: bytes) -> None:
         with self._lock:

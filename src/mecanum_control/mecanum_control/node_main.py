@@ -118,8 +118,10 @@ class ClockAnswer:
 
     While a simulator in lockstep subscribes to /clock_ack, a /clock is taken in order:
 
-    1. the messages that came before it, and every message their callbacks publish to
-       this process, are handled first (:meth:`drain`), at the time before;
+    1. what came before it is handled first, at the time before: input from outside ROS
+       (a node's ``catch_up()`` method, if it has one: hardware_interface reads the
+       board's frames), the messages, and every message their callbacks publish to this
+       process (:meth:`drain`);
     2. then every node's time source takes the new time (each node has its own);
     3. the timers that time made due run (the executor), then what they publish to this
        process is handled (drain again);
@@ -154,6 +156,9 @@ class ClockAnswer:
         self.publisher = self.nodes[0].create_publisher(Header, '/clock_ack', reliable)
         self.alive_publisher = self.nodes[0].create_publisher(Header, '/clock_alive', reliable)
         self._instrument()
+        #: Nodes' catch_up(): take in input from outside ROS that came before a /clock.
+        self._catch_ups = [node.catch_up for node in self.nodes
+                           if callable(getattr(node, 'catch_up', None))]
         threading.Thread(target=self._say_alive, name='clock_alive', daemon=True).start()
 
     def _say_alive(self) -> None:
@@ -224,6 +229,9 @@ class ClockAnswer:
     def after_spin(self, executor) -> None:
         """Take a held /clock (1, 2 above) or answer the pending one once its work is done."""
         if self._deferred:
+            for catch_up in self._catch_ups:
+                if catch_up():
+                    self._idle_at = -1     # it published: drain
             self.drain(executor)
             deferred, self._deferred = self._deferred, []
             for take, _ in deferred:
