@@ -217,6 +217,13 @@ class Recorder:
             return next((msg for when, msg in reversed(self.messages) if when <= received_by),
                         None)
 
+    def messages_between(self, start_s: float, end_s: float) -> list:
+        """Messages whose header stamp lies in [start_s, end_s] (ROS time, s)."""
+        with self._lock:
+            return [msg for _, msg in self.messages
+                    if start_s <= msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                    <= end_s]
+
     def since(self, start: float) -> list:
         """Messages received at or after monotonic time start."""
         with self._lock:

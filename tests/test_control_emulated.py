@@ -147,10 +147,15 @@ def test_constant_cmd_vel_moves_the_robot_as_commanded_over_a_noisy_line(start_e
     turned = math.remainder(yaw_from_quaternion(*_quaternion(last))
                             - yaw_from_quaternion(*_quaternion(first)), 2 * math.pi)
     assert turned / elapsed == pytest.approx(1.0, rel=0.1)
-    # The board's gyro sees the same rotation; the IMU message says it has no orientation.
-    sample = imu.latest()
+    # The board's gyro sees the same rotation over the same second (its mean: one sample
+    # may catch a dip when a loaded machine holds the real-time board emulator back; a
+    # local make test run saw 0.59 rad/s in the latest one); the IMU has no orientation.
+    window = imu.messages_between(stamp_s(first), stamp_s(last))
+    assert len(window) > 10
+    mean_wz = sum(m.angular_velocity.z for m in window) / len(window)
+    assert mean_wz == pytest.approx(1.0, rel=0.1)
+    sample = window[-1]
     assert sample.header.frame_id == 'imu_link'
-    assert sample.angular_velocity.z == pytest.approx(1.0, rel=0.1)
     assert sample.linear_acceleration.z == pytest.approx(9.80665, abs=0.01)
     assert sample.orientation_covariance[0] == -1.0
     assert sample.angular_velocity_covariance[0] == pytest.approx(0.005 ** 2)
