@@ -31,7 +31,7 @@ RUN_MARKER = 'MECANUM_TEST_RUN'
 
 
 def processes_with_marker(marker: str) -> list:
-    """PIDs of live processes whose environment carries RUN_MARKER=marker."""
+    """Return the PIDs of live processes whose environment has RUN_MARKER=marker."""
     return processes_with_variable(RUN_MARKER, marker)
 
 
@@ -110,7 +110,7 @@ class RunningSystem(OutputProcess):
 
 @pytest.fixture(name='processes_with_marker')
 def processes_with_marker_fixture():
-    """The function listing live processes of a RunningSystem (by its marker)."""
+    """Return the function that lists a RunningSystem's live processes (by marker)."""
     return processes_with_marker
 
 
@@ -140,7 +140,7 @@ def marked_env():
 
 @pytest.fixture
 def ros_env():
-    """An environment with a leased ROS_DOMAIN_ID and localhost-only discovery."""
+    """Yield an environment with a leased ROS_DOMAIN_ID and localhost-only discovery."""
     with lease_domain_id() as lease:
         env = isolated_environment(os.environ, lease.domain_id)
         env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
