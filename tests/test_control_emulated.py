@@ -89,7 +89,7 @@ def start_emulated(start_system, test_node, tmp_path):
 
 @pytest.fixture
 def emulated(start_emulated):
-    """The emulated control system on a clean line: (system, test_node, port path)."""
+    """Return the emulated control system on a clean line: (system, test_node, port path)."""
     return start_emulated()
 
 
@@ -104,7 +104,7 @@ def steady_twist(odom, seconds=1.0):
 
 
 def wheels_still(msg: JointState) -> bool:
-    """True when every wheel speed in a joint_states message is zero."""
+    """Tell whether every wheel speed in a joint_states message is zero."""
     return all(abs(v) < 1e-9 for v in msg.velocity)
 
 
