@@ -10,13 +10,15 @@ lockstep does.
    when the answer to that /clock arrives, the whole chain has run, at that time.
 2. A message that came before a /clock, and the message its callback publishes within
    the process, are handled at the time before that /clock (the chain finishes first).
+3. With node_main.share_time_source (as spin_waking does), one /clock subscription drives
+   both nodes' clocks, and the chain of 1. still runs before the answer.
 """
 
 import threading
 import time
 
 from builtin_interfaces.msg import Time
-from mecanum_control.node_main import answer_clock, make_executor
+from mecanum_control.node_main import answer_clock, make_executor, share_time_source
 import pytest
 import rclpy
 from rclpy.node import Node
@@ -34,7 +36,7 @@ RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 class Stack:
     """Two nodes on simulated time in one executor, answering /clock via ClockAnswer."""
 
-    def __init__(self, domain_id: int):
+    def __init__(self, domain_id: int, shared_time_source: bool = False):
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         sim_time = [Parameter('use_sim_time', value=True)]
@@ -58,6 +60,8 @@ class Stack:
         self.executor = make_executor(self.context)
         for node in (self.first, self.second):
             self.executor.add_node(node)
+        if shared_time_source:
+            share_time_source((self.first, self.second))
         self.answer = answer_clock((self.first, self.second), 'stack')
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
@@ -134,11 +138,11 @@ class Simulator:
         rclpy.try_shutdown(context=self.context)
 
 
-@pytest.fixture
-def stack_and_simulator(ros_env, monkeypatch):
+@pytest.fixture(params=[False, True], ids=['own_time_sources', 'shared_time_source'])
+def stack_and_simulator(ros_env, monkeypatch, request):
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     domain_id = int(ros_env['ROS_DOMAIN_ID'])
-    stack = Stack(domain_id)
+    stack = Stack(domain_id, shared_time_source=request.param)
     simulator = Simulator(domain_id, stack)
     try:
         yield stack, simulator
@@ -192,3 +196,20 @@ def test_messages_before_a_clock_are_handled_at_the_time_before(stack_and_simula
     assert len(stack.forwarded) == 50
     late = [(handled, sent) for handled, sent in stack.forwarded if handled != sent]
     assert not late, f'handled after the next /clock (handled ns, sent at ns): {late[:5]}'
+
+
+def test_a_shared_time_source_is_one_clock_subscription_for_every_node(ros_env, monkeypatch):
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    domain_id = int(ros_env['ROS_DOMAIN_ID'])
+    stack = Stack(domain_id, shared_time_source=True)
+    simulator = Simulator(domain_id, stack)
+    try:
+        clock_subscriptions = [sub for node in (stack.first, stack.second)
+                               for sub in node.subscriptions if sub.topic_name == '/clock']
+        assert len(clock_subscriptions) == 1
+        clock_ns = start_lockstep(stack, simulator)
+        assert stack.first.get_clock().now().nanoseconds == clock_ns
+        assert stack.second.get_clock().now().nanoseconds == clock_ns
+    finally:
+        simulator.close()
+        stack.close()

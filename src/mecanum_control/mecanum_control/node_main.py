@@ -250,6 +250,30 @@ class ClockAnswer:
         self._pending = None
 
 
+def share_time_source(nodes: Sequence[Node]) -> None:
+    """
+    On simulated time, let the first node's time source drive the clocks of all nodes.
+
+    Every rclpy node has a time source with a /clock subscription of its own, so in a
+    container of 11 nodes each /clock was delivered, converted and handled 11 times. The
+    other nodes' time sources give up their subscription (``detach_node``) and their
+    clocks follow the first node's (``attach_clock``), so all take a new time at once.
+    rclpy offers no public accessor for a node's time source (``_time_source``); where
+    it is missing, nothing changes. A later change of ``use_sim_time`` on the other
+    nodes no longer takes effect.
+    """
+    first = nodes[0]
+    source = getattr(first, '_time_source', None)
+    if source is None or not first.get_parameter('use_sim_time').value:
+        return
+    for node in nodes[1:]:
+        own = getattr(node, '_time_source', None)
+        if own is None or not node.get_parameter('use_sim_time').value:
+            continue
+        own.detach_node()
+        source.attach_clock(node.get_clock())
+
+
 def answer_clock(nodes: Sequence[Node], name: str) -> Optional[ClockAnswer]:
     """
     On simulated time, return the :class:`ClockAnswer` of nodes as ``name``.
@@ -272,6 +296,7 @@ def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
     executor = executor or make_executor(node.context)
     for each in (node, *more_nodes):
         executor.add_node(each)
+    share_time_source((node, *more_nodes))
     answer = answer_clock((node, *more_nodes), node.get_name() if not more_nodes
                           else f'{node.get_name()} (+{len(more_nodes)} nodes)')
     with signals_deferred() as stop:
