@@ -107,6 +107,7 @@ class ScenarioDriver:
         self._arrived_ns: Optional[int] = None
         self._held_ns: Optional[int] = None
         self._released_ns = -1
+        self._check: Callable[[], None] = lambda: None
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self._ack_pub = node.create_publisher(Header, '/clock_ack', reliable)
         node.create_subscription(Clock, '/clock', self._on_clock, reliable)
@@ -137,8 +138,14 @@ class ScenarioDriver:
             self._time.wait_for(lambda: not self._in_lockstep or self._closing.is_set()
                                 or self._released_ns >= clock_ns)
 
-    def join_lockstep(self) -> None:
-        """Take part in the lockstep from the next /clock on (see the module docstring)."""
+    def join_lockstep(self, check: Callable[[], None] = lambda: None) -> None:
+        """
+        Take part in the lockstep from the next /clock on (see the module docstring).
+
+        ``check`` is called while :meth:`tick` waits for time to go on (it may raise to
+        end the wait: the system stopped, Ctrl-C).
+        """
+        self._check = check
         with self._time:
             self._in_lockstep = True
             self._arrived_ns = self._held_ns = None
@@ -160,9 +167,12 @@ class ScenarioDriver:
         """
         Done with the current simulated time: let it go and wait for the next one.
 
-        In lockstep: answers the held time on /clock_ack, lets the spin thread go on
-        and waits up to TICK_WAIT_S of wall time for the next /clock (returns without one,
-        so the caller can look at the system). Outside lockstep: sleeps TICK_WAIT_S.
+        In lockstep: answers the held time on /clock_ack, lets the spin thread go on and
+        returns once the next /clock has come (the spin thread holds it), calling the
+        ``check`` given to :meth:`join_lockstep` every TICK_WAIT_S of wall time meanwhile.
+        It never returns at the time it let go: the spin thread has taken what came after
+        that /clock since, so a look at that time again would see messages of the next
+        period, or not, by the wall clock's luck. Outside lockstep: sleeps TICK_WAIT_S.
         """
         with self._time:
             if not self._in_lockstep:
@@ -175,10 +185,16 @@ class ScenarioDriver:
                 self._ack_pub.publish(Header(stamp=Time(sec=sec, nanosec=nanosec),
                                              frame_id=LOCKSTEP_NAME))
                 self._time.notify_all()
-            if self._time.wait_for(
-                    lambda: self._arrived_ns is not None
-                    and (held is None or self._arrived_ns > held), TICK_WAIT_S):
-                self._held_ns = self._arrived_ns
+        while True:
+            with self._time:
+                if self._time.wait_for(
+                        lambda: self._arrived_ns is not None
+                        and (held is None or self._arrived_ns > held), TICK_WAIT_S):
+                    self._held_ns = self._arrived_ns
+                    return
+                if held is None or not self._in_lockstep or self._closing.is_set():
+                    return
+            self._check()
 
     # --- what it records ---------------------------------------------------------------
 

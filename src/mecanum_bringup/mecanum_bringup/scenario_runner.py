@@ -397,8 +397,10 @@ def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRec
                options: RunOptions, say: Progress) -> None:
     frozen: List[Tuple[int, float]] = []   # (pid, simulated time to resume it)
     if options.lockstep:
-        driver.join_lockstep()
-        while not driver.holding_time():
+        driver.join_lockstep(check=lambda: _check(system))
+        # The first step starts on a whole simulated second: every periodic timer of the
+        # stack (started at time 0) then has the same phase at the start of every run.
+        while not driver.holding_time() or not _whole_second(driver.sim_now()):
             _check(system)
             driver.tick()
     try:
@@ -407,6 +409,11 @@ def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRec
         driver.leave_lockstep()
         for pid, _ in frozen:
             _resume(pid)
+
+
+def _whole_second(time_s: float) -> bool:
+    """Tell whether a simulated time is a whole second (to the microsecond)."""
+    return abs(time_s - round(time_s)) < 1e-6
 
 
 def _resume(pid: int) -> None:
