@@ -7,14 +7,14 @@ stack answers), once on a quiet machine and once while a CPU hog keeps one core 
 without a CPU hog"). Simulated time waits for the stack each period, so the load only
 stretches wall time: the verdict and every step's outcome and error code agree.
 
-Each process answers a /clock once the work it starts is done (node_main.ClockAnswer) and
-the runner holds each /clock until it has looked at that time, so the steps start and end
-at nearly the same simulated times, but not yet period-exact: the wheel encoder and IMU
-frames still reach hardware_interface on its serial reader thread at a wall-clock moment,
-not a simulated one. Measured 2026-11-26 (text_commands, aligned on the first step): step
-ends 0.02-0.06 s apart in 5 local pairs (before ClockAnswer: 0.06-0.24 s), true tracks
-8-20 mm (before: up to 55 mm); but 0.16 s (28 mm) on a fresh-clone CI run. The test
-prints both; issue 19 keeps the period-exact comparison open.
+Each process answers a /clock once the work it starts is done (node_main.ClockAnswer,
+including the board's frames of the period: hardware_interface.catch_up), the runner
+holds each /clock until it has looked at that time and starts the first step on a whole
+simulated second. Not yet period-exact: measured 2026-11-26 (text_commands, 3 runs, one
+beside a CPU hog) the first step took 4.02 s in each, but later steps still differ by a
+period or three (step ends up to 0.1 s apart, true tracks up to 32 mm); before this
+work step ends differed by 0.06-0.24 s. The test prints both; issue 19 keeps the
+period-exact comparison open.
 """
 
 import json
