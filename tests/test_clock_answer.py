@@ -10,7 +10,9 @@ lockstep does.
    when the answer to that /clock arrives, the whole chain has run, at that time.
 2. A message that came before a /clock, and the message its callback publishes within
    the process, are handled at the time before that /clock (the chain finishes first).
-3. With node_main.share_time_source (as spin_waking does), one /clock subscription drives
+3. A message from another process sent just after a /clock is handled at that /clock's
+   time, also when it arrives while the stack finishes the time before.
+4. With node_main.share_time_source (as spin_waking does), one /clock subscription drives
    both nodes' clocks, and the chain of 1. still runs before the answer.
 """
 
@@ -57,6 +59,10 @@ class Stack:
         self.first.create_subscription(
             Int64, 'outside', lambda m: self.pub_forwarded.publish(m), RELIABLE)
         self.second.create_subscription(Int64, 'forwarded', self._on_forwarded, RELIABLE)
+        # Chain 3: 'slow' from the simulator takes 20 ms, then goes on within the process.
+        self.pub_slow_done = self.first.create_publisher(Int64, 'slow_done', RELIABLE)
+        self.first.create_subscription(Int64, 'slow', self._on_slow, RELIABLE)
+        self.second.create_subscription(Int64, 'slow_done', lambda m: None, RELIABLE)
         self.executor = make_executor(self.context)
         for node in (self.first, self.second):
             self.executor.add_node(node)
@@ -72,6 +78,10 @@ class Stack:
 
     def _on_timer(self):
         self.pub_a.publish(Int64(data=self._now_ns(self.first)))
+
+    def _on_slow(self, msg: Int64):
+        time.sleep(0.02)
+        self.pub_slow_done.publish(msg)
 
     def _on_chain_end(self, msg: Int64):
         self.chain_done.append((self._now_ns(self.second), msg.data))
@@ -103,6 +113,7 @@ class Simulator:
         self.node = Node('simulator', context=self.context)
         self.clock_pub = self.node.create_publisher(Clock, '/clock', RELIABLE)
         self.outside_pub = self.node.create_publisher(Int64, 'outside', RELIABLE)
+        self.slow_pub = self.node.create_publisher(Int64, 'slow', RELIABLE)
         self.acked = threading.Condition()
         self.acks = {}    # acked /clock ns -> the stack's chain_done at that moment
         self.node.create_subscription(Header, '/clock_ack', self._on_ack, RELIABLE)
@@ -196,6 +207,26 @@ def test_messages_before_a_clock_are_handled_at_the_time_before(stack_and_simula
     assert len(stack.forwarded) == 50
     late = [(handled, sent) for handled, sent in stack.forwarded if handled != sent]
     assert not late, f'handled after the next /clock (handled ns, sent at ns): {late[:5]}'
+
+
+def test_messages_after_a_clock_are_handled_at_its_time(stack_and_simulator):
+    stack, simulator = stack_and_simulator
+    clock_ns = start_lockstep(stack, simulator)
+    for number in range(50):
+        # 'slow' keeps the stack busy with the time before when the /clock comes, and
+        # 'outside' goes out just after that /clock: it reaches the stack while it still
+        # finishes the time before, and must wait for the new time.
+        simulator.slow_pub.publish(Int64(data=clock_ns))
+        clock_ns += PERIOD_NS
+        simulator.publish_clock(clock_ns)
+        simulator.outside_pub.publish(Int64(data=clock_ns))
+        assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
+    deadline = time.monotonic() + 5.0
+    while len(stack.forwarded) < 50 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert len(stack.forwarded) == 50
+    early = [(handled, sent) for handled, sent in stack.forwarded if handled != sent]
+    assert not early, f'handled before its /clock (handled ns, sent at ns): {early[:5]}'
 
 
 def test_a_shared_time_source_is_one_clock_subscription_for_every_node(ros_env, monkeypatch):

@@ -32,7 +32,7 @@ import functools
 import os
 import signal
 import threading
-from typing import Callable, Iterator, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -121,8 +121,11 @@ class ClockAnswer:
     1. what came before it is handled first, at the time before: input from outside ROS
        (a node's ``catch_up()`` method, if it has one: hardware_interface reads the
        board's frames), the messages, and every message their callbacks publish to this
-       process (:meth:`drain`);
-    2. then every node's time source takes the new time (each node has its own);
+       process (:meth:`drain`). A message from another process that arrives meanwhile
+       came after the /clock: its callback is held and runs once the new time is taken
+       (the process's publishers are counted per local subscription, so what is left
+       over is from outside);
+    2. then the nodes' time source(s) take the new time (:func:`share_time_source`);
     3. the timers that time made due run (the executor), then what they publish to this
        process is handled (drain again);
     4. then the answer goes out. What the process published for that time is then on its
@@ -150,6 +153,10 @@ class ClockAnswer:
         self._idle_at = 0         # self.calls when the executor's queue was last empty
         self._clocks_taken = 0
         self._deferred: List[Tuple[Callable, Clock]] = []
+        self._taking = False      # a /clock is held: outside messages wait for it
+        self._held: List[Callable] = []
+        self._local_subscriptions: Dict[str, List[int]] = {}   # topic: subscription ids
+        self._expected: Dict[int, int] = {}   # subscription id: own messages on the way
         self._pending: Optional[Clock] = None
         self._pending_ns = 0
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -172,26 +179,48 @@ class ClockAnswer:
                 return
 
     def _instrument(self) -> None:
-        """Count the nodes' callbacks; hold each /clock for :meth:`after_spin` (new ones too)."""
+        """Count the nodes' callbacks and publications; hold each /clock (new ones too)."""
         for node in self.nodes:
             for entity in (*node.subscriptions, *node.timers):
                 callback = entity.callback
                 if getattr(callback, 'clock_answer', None) is self:
                     continue
-                if (getattr(entity, 'topic_name', None) == '/clock'
-                        and not getattr(entity, 'raw', False)):   # raw: a recorder's
+                topic = getattr(entity, 'topic_name', None)
+                if topic == '/clock' and not getattr(entity, 'raw', False):  # raw: recorder
                     wrapped = self._deferring(callback)
-                else:
+                elif topic is None:
                     wrapped = self._counting(callback)
+                else:
+                    self._local_subscriptions.setdefault(topic, []).append(id(entity))
+                    wrapped = self._counting(callback, id(entity))
                 wrapped.clock_answer = self
                 entity.callback = wrapped
+            for publisher in node.publishers:
+                if getattr(publisher.publish, 'clock_answer', None) is not self:
+                    publisher.publish = self._noting(publisher.publish,
+                                                     publisher.topic_name)
+
+    def _noting(self, publish: Callable, topic: str) -> Callable:
+        """Wrap a publisher's publish: note the message for each local subscription."""
+        def noted(msg):
+            for key in self._local_subscriptions.get(topic, ()):
+                self._expected[key] = self._expected.get(key, 0) + 1
+            return publish(msg)
+        noted.clock_answer = self
+        return noted
 
     # functools.wraps: rclpy reads the callback's signature (through __wrapped__) to
     # decide whether to pass a subscription's MessageInfo too.
-    def _counting(self, callback: Callable) -> Callable:
+    def _counting(self, callback: Callable, key: Optional[int] = None) -> Callable:
         @functools.wraps(callback)
         def counted(*args):
             self.calls += 1
+            if key is not None:
+                if self._expected.get(key, 0) > 0:
+                    self._expected[key] -= 1          # one of this process's own
+                elif self._taking:
+                    self._held.append(functools.partial(callback, *args))
+                    return None                       # from outside, after the /clock
             return callback(*args)
         return counted
 
@@ -202,6 +231,7 @@ class ClockAnswer:
             if self.publisher.get_subscription_count() == 0:
                 return callback(msg, *info)     # not in lockstep: take it at once
             self._deferred.append((functools.partial(callback, msg, *info), msg))
+            self._taking = True
         return deferred
 
     def drain(self, executor) -> None:
@@ -236,6 +266,10 @@ class ClockAnswer:
             deferred, self._deferred = self._deferred, []
             for take, _ in deferred:
                 take()
+            self._taking = False
+            held, self._held = self._held, []
+            for run in held:      # outside messages that came after the /clock, at its time
+                run()
             self._pending = deferred[-1][1]
             self._pending_ns = self._pending.clock.sec * 10 ** 9 + self._pending.clock.nanosec
             self._clocks_taken += 1
