@@ -7,14 +7,14 @@ stack answers), once on a quiet machine and once while a CPU hog keeps one core 
 without a CPU hog"). Simulated time waits for the stack each period, so the load only
 stretches wall time: the verdict and every step's outcome and error code agree.
 
-Each process answers a /clock once the work it starts is done (node_main.ClockAnswer,
-including the board's frames of the period: hardware_interface.catch_up), the runner
-holds each /clock until it has looked at that time and starts the first step on a whole
-simulated second. Not yet period-exact: measured 2026-11-26 (text_commands, 3 runs, one
-beside a CPU hog) the first step took 4.02 s in each, but later steps still differ by a
-period or three (step ends up to 0.1 s apart, true tracks up to 32 mm); before this
-work step ends differed by 0.06-0.24 s. The test prints both; issue 19 keeps the
-period-exact comparison open.
+Each process answers a /clock once the work it starts is done (node_main.ClockAnswer:
+the board's frames of the period, the messages before the /clock and their callbacks;
+messages from other processes that come after it wait for it), the runner holds each
+/clock until it has looked at that time and starts the first step on a whole simulated
+second. Measured 2026-11-26 (text_commands): with and without a CPU hog, identical step
+times and true tracks (0.0 mm apart); another pair of runs differed by 0.04 s from the
+fourth step on (before this work: step ends 0.06-0.24 s apart, tracks up to 55 mm). Not
+bounded yet: the test prints both; issue 19 keeps the period-exact comparison open.
 """
 
 import json
