@@ -32,6 +32,7 @@ import functools
 import os
 import signal
 import threading
+import time
 from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import rclpy
@@ -152,9 +153,8 @@ class ClockAnswer:
         self._clock_calls = 0     # /clock callbacks run
         self._idle_at = 0         # self.calls when the executor's queue was last empty
         self._clocks_taken = 0
-        self._deferred: List[Tuple[Callable, Clock]] = []
-        self._taking = False      # a /clock is held: outside messages wait for it
-        self._held: List[Callable] = []
+        self._deferred: List[Tuple[Callable, Clock]] = []   # held /clock: outside
+        self._held: List[Callable] = []                      # messages wait for it
         self._local_subscriptions: Dict[str, List[int]] = {}   # topic: subscription ids
         self._expected: Dict[int, int] = {}   # subscription id: own messages on the way
         self._pending: Optional[Clock] = None
@@ -170,8 +170,9 @@ class ClockAnswer:
 
     def _say_alive(self) -> None:
         """Publish /clock_alive every ALIVE_PERIOD_S while anyone listens (thread)."""
-        context, stop = self.nodes[0].context, threading.Event()
-        while context.ok() and not stop.wait(ALIVE_PERIOD_S):
+        context = self.nodes[0].context
+        while context.ok():
+            time.sleep(ALIVE_PERIOD_S)
             try:
                 if self.alive_publisher.get_subscription_count() > 0:
                     self.alive_publisher.publish(Header(frame_id=self.name))
@@ -218,7 +219,7 @@ class ClockAnswer:
             if key is not None:
                 if self._expected.get(key, 0) > 0:
                     self._expected[key] -= 1          # one of this process's own
-                elif self._taking:
+                elif self._deferred:
                     self._held.append(functools.partial(callback, *args))
                     return None                       # from outside, after the /clock
             return callback(*args)
@@ -231,7 +232,6 @@ class ClockAnswer:
             if self.publisher.get_subscription_count() == 0:
                 return callback(msg, *info)     # not in lockstep: take it at once
             self._deferred.append((functools.partial(callback, msg, *info), msg))
-            self._taking = True
         return deferred
 
     def drain(self, executor) -> None:
@@ -266,7 +266,6 @@ class ClockAnswer:
             deferred, self._deferred = self._deferred, []
             for take, _ in deferred:
                 take()
-            self._taking = False
             held, self._held = self._held, []
             for run in held:      # outside messages that came after the /clock, at its time
                 run()
