@@ -369,7 +369,14 @@ class HardwareInterface(Node):
                 self._read_once(port)
 
     def _read_once(self, port) -> bool:
-        """Read and handle what the line has now, without waiting; return whether any."""
+        """
+        Read and handle what the line has now, without waiting; return whether any.
+
+        It selects again (timeout 0) although the reader thread has just selected: on a
+        pty, select also pushes the bytes written to the other side through to this one,
+        which a bare non-blocking read does not (catch_up then missed frames written just
+        before; tests/test_hardware_interface_catch_up.py).
+        """
         with self._read_lock:
             try:
                 data = read_available(port.fd, 0.0)
