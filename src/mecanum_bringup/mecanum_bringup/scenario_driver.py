@@ -17,8 +17,9 @@ In lockstep (:meth:`join_lockstep`) the runner is one of the parts simulated tim
 for: each /clock is held in the spin thread until the main thread has looked at that time
 (:meth:`tick`), then answered on ``/clock_ack``. The main thread therefore sees, at each
 simulated time, exactly what came in before that /clock (the spin thread takes nothing
-after it meanwhile) and its commands for that time go out before time steps on: a step
-starts and ends at the same simulated time whatever the machine's load.
+after it meanwhile) and its commands for that time go out before time steps on, so the
+machine's load does not move a step's start or end (a period or two of jitter remains
+at some step changes: issue 19).
 """
 
 import functools
