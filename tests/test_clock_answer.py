@@ -39,6 +39,7 @@ class Stack:
     """Two nodes on simulated time in one executor, answering /clock via ClockAnswer."""
 
     def __init__(self, domain_id: int, shared_time_source: bool = False):
+        self.shared_time_source = shared_time_source
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         sim_time = [Parameter('use_sim_time', value=True)]
@@ -88,6 +89,14 @@ class Stack:
 
     def _on_forwarded(self, msg: Int64):
         self.forwarded.append((self._now_ns(self.second), msg.data))
+
+    def forwarded_off_time(self, count: int) -> list:
+        """Wait (5 s at most) for count 'forwarded'; return those not handled at their ns."""
+        deadline = time.monotonic() + 5.0
+        while len(self.forwarded) < count and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert len(self.forwarded) == count
+        return [(handled, sent) for handled, sent in self.forwarded if handled != sent]
 
     def _spin(self):
         while self.context.ok() and not self._stop.is_set():
@@ -194,25 +203,21 @@ def test_the_answer_comes_after_the_chain_a_timer_starts(stack_and_simulator):
 def test_messages_before_a_clock_are_handled_at_the_time_before(stack_and_simulator):
     stack, simulator = stack_and_simulator
     clock_ns = start_lockstep(stack, simulator)
-    for number in range(50):
+    for _ in range(50):
         # 'outside' goes out just before the next /clock, without waiting: the stack
         # must finish it (and what its callback publishes) at the time before.
         simulator.outside_pub.publish(Int64(data=clock_ns))
         clock_ns += PERIOD_NS
         simulator.publish_clock(clock_ns)
         assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
-    deadline = time.monotonic() + 5.0
-    while len(stack.forwarded) < 50 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert len(stack.forwarded) == 50
-    late = [(handled, sent) for handled, sent in stack.forwarded if handled != sent]
+    late = stack.forwarded_off_time(50)
     assert not late, f'handled after the next /clock (handled ns, sent at ns): {late[:5]}'
 
 
 def test_messages_after_a_clock_are_handled_at_its_time(stack_and_simulator):
     stack, simulator = stack_and_simulator
     clock_ns = start_lockstep(stack, simulator)
-    for number in range(50):
+    for _ in range(50):
         # 'slow' keeps the stack busy with the time before when the /clock comes, and
         # 'outside' goes out just after that /clock: it reaches the stack while it still
         # finishes the time before, and must wait for the new time.
@@ -221,26 +226,15 @@ def test_messages_after_a_clock_are_handled_at_its_time(stack_and_simulator):
         simulator.publish_clock(clock_ns)
         simulator.outside_pub.publish(Int64(data=clock_ns))
         assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
-    deadline = time.monotonic() + 5.0
-    while len(stack.forwarded) < 50 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert len(stack.forwarded) == 50
-    early = [(handled, sent) for handled, sent in stack.forwarded if handled != sent]
+    early = stack.forwarded_off_time(50)
     assert not early, f'handled before its /clock (handled ns, sent at ns): {early[:5]}'
 
 
-def test_a_shared_time_source_is_one_clock_subscription_for_every_node(ros_env, monkeypatch):
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    domain_id = int(ros_env['ROS_DOMAIN_ID'])
-    stack = Stack(domain_id, shared_time_source=True)
-    simulator = Simulator(domain_id, stack)
-    try:
-        clock_subscriptions = [sub for node in (stack.first, stack.second)
-                               for sub in node.subscriptions if sub.topic_name == '/clock']
-        assert len(clock_subscriptions) == 1
-        clock_ns = start_lockstep(stack, simulator)
-        assert stack.first.get_clock().now().nanoseconds == clock_ns
-        assert stack.second.get_clock().now().nanoseconds == clock_ns
-    finally:
-        simulator.close()
-        stack.close()
+def test_a_shared_time_source_is_one_clock_subscription_for_every_node(stack_and_simulator):
+    stack, simulator = stack_and_simulator
+    clock_subscriptions = [sub for node in (stack.first, stack.second)
+                           for sub in node.subscriptions if sub.topic_name == '/clock']
+    assert len(clock_subscriptions) == (1 if stack.shared_time_source else 2)
+    clock_ns = start_lockstep(stack, simulator)
+    assert stack.first.get_clock().now().nanoseconds == clock_ns
+    assert stack.second.get_clock().now().nanoseconds == clock_ns
