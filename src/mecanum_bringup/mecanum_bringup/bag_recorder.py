@@ -10,10 +10,14 @@ with a QoS matching every offer (rosbag2's rule: reliable only if all publishers
 transient local only if all are, so latched /tf_static, /map, /robot_description
 are recorded too), depth ``SUBSCRIPTION_DEPTH``.
 
-Times (as rosbag2 in Jazzy): log time = receive time, from the node clock with
-``use_sim_time`` (simulated time; messages received before the first /clock are
-kept and stamped with the first simulated time), else the middleware's receive
-time (system clock); publish time = the publisher's send time (system clock).
+Times: log time = receive time, from the node clock with ``use_sim_time``
+(simulated time; messages received before the first /clock are kept and stamped with
+the first simulated time), else the system clock when the message is taken; publish
+time = log time (as rosbag2 before Jazzy; Jazzy's rosbag2 writes the publisher's send
+time, which rclpy 7.1's EventsExecutor cannot hand to a callback: SystemError "null
+argument"). The EventsExecutor, not rclpy's SingleThreadedExecutor: the latter rebuilt
+its wait set for each message and took 85 % of the recorder's CPU (54 CPU s of the
+demo's 196, recording 241 000 messages).
 Ctrl-C/SIGTERM finish the bag (index, summary, metadata.yaml): nothing is lost.
 
 Parameters: ``output`` (bag directory, must not exist; '' = rosbag2_YYYY_MM_DD-HH_MM_SS),
@@ -35,11 +39,10 @@ from mecanum_bringup.bag_writer import (
     OfferedQos)
 from mecanum_bringup.message_definitions import split_type_name
 from mecanum_control.log_throttle import KeyedThrottle
-from mecanum_control.node_main import run_node, spin_waking
+from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -92,18 +95,6 @@ def subscription_qos(offers: Sequence[OfferedQos], depth: int) -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=(DurabilityPolicy.TRANSIENT_LOCAL if transient_local
                     else DurabilityPolicy.VOLATILE))
-
-
-def spin_until_signal(node: Node) -> None:
-    """
-    Spin node until SIGINT/SIGTERM or the context's shutdown (run_node's spin).
-
-    The signals only set a flag while spinning (node_main.spin_waking), so one never
-    interrupts a message half written (or rclpy half way through taking it).
-    """
-    # Not the EventsExecutor of the other nodes: with it the subscriptions this node
-    # creates as topics appear never delivered a message (a 5-minute demo recorded 0).
-    spin_waking(node, executor=SingleThreadedExecutor(context=node.context))
 
 
 def raw_subscription(node: Node, msg_class, topic: str, callback, qos: QoSProfile):
@@ -220,8 +211,8 @@ class BagRecorder(Node):
             f'Subscribed to topic {topic} ({type_name}, {qos.reliability.name.lower()}, '
             f'{qos.durability.name.lower()})')
 
-    def on_message(self, topic: str, data: bytes, info: dict) -> None:
-        """Write one serialized message with its receive and send times."""
+    def on_message(self, topic: str, data: bytes) -> None:
+        """Write one serialized message at its receive time."""
         if self.use_sim_time:
             log_time_ns = self.get_clock().now().nanoseconds
             if log_time_ns <= 0:  # simulated time has not started: keep it for later
@@ -230,12 +221,12 @@ class BagRecorder(Node):
                     if self.throttle.ready('pending'):
                         self.get_logger().warning(
                             f'No /clock yet: keeping only the last {MAX_PENDING} messages')
-                self.pending.append((topic, data, info.get('source_timestamp')))
+                self.pending.append((topic, data))
                 return
             self.write_pending()
         else:
-            log_time_ns = info.get('received_timestamp') or time.time_ns()
-        self.write(topic, data, log_time_ns, info.get('source_timestamp') or log_time_ns)
+            log_time_ns = time.time_ns()
+        self.write(topic, data, log_time_ns, log_time_ns)
 
     def write_pending(self, log_time_ns: int = 0) -> None:
         """Write the messages kept before simulated time started, at its first time."""
@@ -245,8 +236,8 @@ class BagRecorder(Node):
         if log_time_ns <= 0:
             return
         pending, self.pending = self.pending, []
-        for topic, data, publish_time_ns in pending:
-            self.write(topic, data, log_time_ns, publish_time_ns or log_time_ns)
+        for topic, data in pending:
+            self.write(topic, data, log_time_ns, log_time_ns)
 
     def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
         """Write to the bag; a failure (disk full) is logged, throttled, not raised."""
@@ -264,8 +255,8 @@ class BagRecorder(Node):
             self.get_logger().warning(
                 f'{len(self.pending)} messages arrived before simulated time started; '
                 'recorded at time 0')
-            for topic, data, publish_time_ns in self.pending:
-                self.write(topic, data, 0, publish_time_ns or 0)
+            for topic, data in self.pending:
+                self.write(topic, data, 0, 0)
             self.pending = []
         missing = sorted(self.topics - set(self.recorded))
         if missing:
@@ -279,7 +270,7 @@ class BagRecorder(Node):
 
 def main(args=None) -> int:
     """Run the bag_recorder node until Ctrl-C or SIGTERM."""
-    return run_node(BagRecorder, 'bag_recorder', args, spin=spin_until_signal)
+    return run_node(BagRecorder, 'bag_recorder', args)
 
 
 if __name__ == '__main__':

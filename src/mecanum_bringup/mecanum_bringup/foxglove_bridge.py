@@ -35,7 +35,7 @@ from typing import Deque, Dict, List
 import foxglove
 from foxglove.websocket import Capability, ServerListener
 from mecanum_bringup.bag_recorder import (
-    message_class, offered_qos, raw_subscription, spin_until_signal, subscription_qos)
+    message_class, offered_qos, raw_subscription, subscription_qos)
 from mecanum_bringup.bag_writer import is_hidden_topic
 from mecanum_bringup.message_definitions import message_definition
 from mecanum_control.log_throttle import KeyedThrottle
@@ -237,7 +237,7 @@ class FoxgloveBridge(Node):
 
 def main(args=None) -> int:
     """Run the foxglove_bridge node until Ctrl-C or SIGTERM."""
-    return run_node(FoxgloveBridge, 'foxglove_bridge', args, spin=spin_until_signal)
+    return run_node(FoxgloveBridge, 'foxglove_bridge', args)
 
 
 if __name__ == '__main__':
