@@ -1,10 +1,11 @@
 """
-Integration: Ctrl-C during the demo stops everything cleanly and keeps the report.
+Integration: Ctrl-C (or SIGTERM) during a run stops everything cleanly and keeps the report.
 
 The demo (``make demo``) runs kitchen_run until its first progress line (+10 s), then
 gets SIGINT as from Ctrl-C: it must stop the robot, end with exit code 1 (the run was
 interrupted), and still write summary.json (aborted, fail), run.png and a readable MCAP
-recording, and leave no process behind.
+recording, and leave no process behind. run_scenarios with --jobs 2 gets SIGTERM, which
+reaches it alone (not its workers): both running scenarios must stop the same way.
 """
 
 import json
@@ -54,4 +55,34 @@ def test_ctrl_c_stops_cleanly_and_keeps_the_report_and_the_recording(tmp_path, m
         assert make_reader(stream).get_summary().statistics.message_count > 1000
     assert (report / 'bag' / 'metadata.yaml').exists()
     # Nothing of the run is left.
+    assert marked_env.leftovers() == []
+
+
+def test_sigterm_to_run_scenarios_stops_every_job_cleanly(tmp_path, marked_env):
+    """
+    SIGTERM stops both running scenarios of run_scenarios --jobs 2.
+
+    The signal (a service manager, `timeout`, CI) reaches run_scenarios alone, not its
+    workers; both scenarios still write their reports.
+    """
+    names = ('text_commands', 'bedroom_and_back')
+    process = subprocess.Popen(
+        [sys.executable, '-m', 'mecanum_bringup.scenario_runner',
+         *(str(SCENARIOS / f'{name}.yaml') for name in names), '--out', str(tmp_path),
+         '--jobs', '2'],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=marked_env.env)
+    lines = []
+    deadline = time.monotonic() + 180
+    for line in process.stdout:
+        lines.append(line)
+        if sum('step 1/' in seen for seen in lines) >= 2 or time.monotonic() > deadline:
+            break
+    assert sum('step 1/' in line for line in lines) >= 2, ''.join(lines)
+    process.send_signal(signal.SIGTERM)
+    rest, _ = process.communicate(timeout=90)
+    output = ''.join(lines) + rest
+    assert process.returncode == 1, output
+    for name in names:
+        summary = json.loads((tmp_path / name / 'summary.json').read_text())
+        assert summary['aborted'] == 'interrupted (SIGTERM)', (name, output)
     assert marked_env.leftovers() == []

@@ -22,7 +22,7 @@ folder (default ``reports/demo_YYYYmmdd_HHMMSS``):
   the .mcap in Foxglove);
 * ``system.log``: every node's output.
 
-Ctrl-C stops the robot and the system cleanly and still writes the report and the
+Ctrl-C (or SIGTERM) stops the robot and the system cleanly and still writes the report and the
 recording of what happened so far. Exit code 0 when the tour passed.
 """
 
@@ -30,13 +30,13 @@ import argparse
 from datetime import datetime
 import json
 from pathlib import Path
-import signal
 import sys
 from typing import Optional, Sequence
 
 from mecanum_bringup.scenario import load_scenario, ScenarioError
 from mecanum_bringup.scenario_runner import (
-    INTERRUPTED, parse_real_time_factor, run_scenario, RunOptions)
+    interrupt, INTERRUPTED, parse_real_time_factor, run_scenario, RunOptions, SIGNAL_NAMES,
+    stopping_cleanly_on_signals)
 
 TOUR_FILE = 'apartment_tour.yaml'
 
@@ -93,15 +93,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if options.foxglove:
         print('demo: live view: open Foxglove, connect to ws://localhost:8765', flush=True)
 
-    def on_sigint(_signum, _frame) -> None:
+    def on_signal(signum, frame) -> None:
         if not INTERRUPTED.is_set():
-            print('\ndemo: Ctrl-C: stopping the robot and writing the report ...', flush=True)
-        INTERRUPTED.set()
-    signal.signal(signal.SIGINT, on_sigint)
-    result = run_scenario(scenario, RunOptions(
-        out, options.real_time_factor, record=not options.no_record,
-        foxglove=options.foxglove, progress=lambda text: print(text, flush=True),
-        compose=not options.no_compose, lockstep=options.lockstep))
+            print(f'\ndemo: {SIGNAL_NAMES.get(signum, signum)}: stopping the robot and writing '
+                  'the report ...', flush=True)
+        interrupt(signum, frame)
+    with stopping_cleanly_on_signals(on_signal):
+        result = run_scenario(scenario, RunOptions(
+            out, options.real_time_factor, record=not options.no_record,
+            foxglove=options.foxglove, progress=lambda text: print(text, flush=True),
+            compose=not options.no_compose, lockstep=options.lockstep))
     run_dir = out / scenario.name
     summary = json.loads((run_dir / 'summary.json').read_text())
     print()

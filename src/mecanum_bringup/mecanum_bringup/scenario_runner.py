@@ -41,12 +41,13 @@ verdicts do not depend on the other runs' load); the table keeps the files' orde
 
 Exit code: 0 when every scenario got the verdict it expects (a scenario with
 ``expect: fail`` must fail), 1 otherwise, 2 when a file is invalid or nothing was found.
-Ctrl-C stops the running scenario cleanly (its report and recording are still written)
+Ctrl-C (or SIGTERM) stops the running scenario cleanly (its report and recording are still written)
 and skips the others.
 """
 
 import argparse
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 import json
 import math
@@ -93,8 +94,36 @@ CMD_VEL_PERIOD_S = 0.05
 REFUSED_MOTION_M = 0.05
 
 Progress = Callable[[str], None]
-#: Set by SIGINT (Ctrl-C): the running scenario stops cleanly, the others are skipped.
+#: Set by SIGINT (Ctrl-C) or SIGTERM (:func:`interrupt`): the running scenario stops
+#: cleanly, the others are skipped.
 INTERRUPTED = threading.Event()
+#: What interrupted the run: the first signal (its number, its name for the summary).
+_INTERRUPTION = {'signum': signal.SIGINT, 'by': 'Ctrl-C'}
+SIGNAL_NAMES = {signal.SIGINT: 'Ctrl-C', signal.SIGTERM: 'SIGTERM'}
+
+
+def interrupt(signum: int = signal.SIGINT, _frame=None) -> None:
+    """Stop the run cleanly (a handler of SIGINT and SIGTERM): set INTERRUPTED."""
+    if not INTERRUPTED.is_set():
+        _INTERRUPTION.update(signum=signum, by=SIGNAL_NAMES.get(signum, f'signal {signum}'))
+    INTERRUPTED.set()
+
+
+def interrupted_by() -> str:
+    """Return what interrupted the run: 'Ctrl-C' or 'SIGTERM'."""
+    return _INTERRUPTION['by']
+
+
+@contextmanager
+def stopping_cleanly_on_signals(handler: Callable[[int, object], None] = interrupt):
+    """Within: SIGINT and SIGTERM call handler (default :func:`interrupt`); then as before."""
+    previous = {number: signal.signal(number, handler)
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for number, handler_before in previous.items():
+            signal.signal(number, handler_before)
 
 
 @dataclass
@@ -284,7 +313,7 @@ def processes_with_marker(marker: Optional[str] = None) -> List[int]:
 # --- one scenario ----------------------------------------------------------------------
 
 class Interrupted(Exception):
-    """Ctrl-C during a scenario."""
+    """Ctrl-C or SIGTERM during a scenario."""
 
 
 class SystemDown(Exception):
@@ -318,7 +347,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
                 if options.on_system:
                     options.on_system(None)
         except Interrupted:
-            record.aborted = 'interrupted (Ctrl-C)'
+            record.aborted = f'interrupted ({interrupted_by()})'
         except SystemDown:
             record.aborted = 'the system stopped: ' + system.tail(5).replace('\n', ' | ')
         except Exception as error:  # noqa: B902 - a runner failure is reported, not raised
@@ -575,8 +604,9 @@ def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
 # --- the command line --------------------------------------------------------------------
 
 def _worker_init() -> None:
-    """Set up a --jobs worker: Ctrl-C (sent to the whole group) ends its run cleanly."""
-    signal.signal(signal.SIGINT, lambda _signum, _frame: INTERRUPTED.set())
+    """Set up a --jobs worker: Ctrl-C (to the whole group) or SIGTERM end its run cleanly."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, interrupt)
 
 
 def _run_in_worker(scenario: Scenario, options: RunOptions, quiet: bool) -> ScenarioResult:
@@ -613,11 +643,16 @@ def _run_all(scenarios: Sequence[Scenario], options: RunOptions, jobs: int, quie
         worker_options = replace(options, progress=None, on_system=None)
         futures = [pool.submit(_run_in_worker, scenario, worker_options, quiet)
                    for scenario in scenarios]
+        cancelled = False
         for index, (scenario, future) in enumerate(zip(scenarios, futures), start=1):
             while not future.done():
-                if INTERRUPTED.is_set():
+                if INTERRUPTED.is_set() and not cancelled:
+                    cancelled = True
                     for pending in futures:
                         pending.cancel()
+                    # A SIGTERM came to this process only (Ctrl-C reaches the workers too).
+                    for worker in multiprocessing.active_children():
+                        os.kill(worker.pid, _INTERRUPTION['signum'])
                 time.sleep(0.2)
             if future.cancelled():
                 result = ScenarioResult(scenario.name, scenario.expect,
@@ -684,13 +719,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                              options.foxglove, say, compose=not options.no_compose,
                              lockstep=not options.no_lockstep)
 
-    def on_sigint(_signum, _frame) -> None:
-        INTERRUPTED.set()
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
+    with stopping_cleanly_on_signals():
         results += _run_all(scenarios, run_options, options.jobs, options.quiet, say)
-    finally:
-        signal.signal(signal.SIGINT, previous)
     print(results_table(results))
     if options.junit:
         Path(options.junit).parent.mkdir(parents=True, exist_ok=True)
