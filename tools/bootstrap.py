@@ -246,7 +246,7 @@ def colcon_build(base_paths: list, build_base: Path, install_base: Path, log_nam
 
 
 def ensure_overlay() -> None:
-    """Build the standard interfaces PyPI lacks (tf2_msgs) into .venv/ros_overlay."""
+    """Build the standard interfaces PyPI lacks (tf2_msgs, ...) into .venv/ros_overlay."""
     packages = sorted(p.parent for p in OVERLAY_SRC.glob('*/package.xml'))
     digest = build_digest(OVERLAY_SRC)
     if read_stamp('overlay') == digest and (OVERLAY_PREFIX / 'install').is_dir():

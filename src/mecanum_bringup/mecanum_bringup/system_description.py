@@ -29,7 +29,7 @@ names the file and the entry, never silently ignored)::
         remap: [{from: cmd_vel, to: /cmd_vel}]
         args: '--extra arguments'         # optional
         respawn: 'true'                   # optional
-        respawn_delay: '2.0'              # optional, seconds
+        respawn_delay: 2.0                # optional, seconds (a float, unquoted)
         on_exit: shutdown                 # optional: stop the whole system when it exits
         if: $(var use_slam)               # optional on every entry but arg: skip it when
                                           # false (unless: skip it when true)
@@ -65,6 +65,10 @@ _IDENTIFIER = re.compile(r'[A-Za-z][A-Za-z0-9_-]*')
 COMMAND_TIMEOUT_S = 120.0
 _NODE_KEYS = {'pkg', 'exec', 'name', 'namespace', 'param', 'remap', 'args', 'ros_args',
               'respawn', 'respawn_delay', 'on_exit', 'output', 'env', 'launch-prefix'}
+#: Node attributes that ROS 2 launch's YAML frontend takes as text only: launch_yaml
+#: checks types and never coerces, so ``respawn: true`` (a YAML bool) fails there.
+_NODE_TEXT_KEYS = ('pkg', 'exec', 'name', 'namespace', 'args', 'ros_args', 'respawn',
+                   'on_exit', 'output', 'launch-prefix')
 
 
 class SystemDescriptionError(ValueError):
@@ -498,6 +502,11 @@ class _Resolver:
         def sub(value: object) -> str:
             return self.substitute(value, scope, where, launch_dir)
 
+        for key in _NODE_TEXT_KEYS:
+            if key in body and not isinstance(body[key], str):
+                raise SystemDescriptionError(
+                    f'{where}: {key} must be text (quote it: {key}: {yaml_scalar(body[key])!r}), '
+                    f'got {type(body[key]).__name__} {body[key]!r}; ROS 2 launch rejects it')
         node = NodeProcess(package=sub(self._required(body, 'pkg', where)),
                            executable=sub(self._required(body, 'exec', where)),
                            env=dict(self._set_env))
@@ -520,10 +529,14 @@ class _Resolver:
         node.ros_arguments = shlex.split(sub(body.get('ros_args', '')))
         node.launch_prefix = shlex.split(sub(body.get('launch-prefix', '')))
         node.respawn = parse_bool(sub(body.get('respawn', 'false')), f'{where}: respawn')
-        try:
-            node.respawn_delay_s = float(sub(body.get('respawn_delay', '0.0')))
-        except ValueError:
-            raise SystemDescriptionError(f'{where}: respawn_delay must be a number') from None
+        delay = body.get('respawn_delay', 0.0)
+        if not isinstance(delay, float):
+            # launch_yaml takes a float as it is (an int or a quoted number fails there).
+            raise SystemDescriptionError(
+                f'{where}: respawn_delay must be a number with a decimal point, unquoted '
+                f'(e.g. respawn_delay: 1.0), got {type(delay).__name__} {delay!r}; ROS 2 '
+                'launch rejects it')
+        node.respawn_delay_s = delay
         if not node.respawn_delay_s >= 0.0:
             raise SystemDescriptionError(f'{where}: respawn_delay must be >= 0')
         on_exit = sub(body.get('on_exit', '')).strip()
@@ -549,8 +562,10 @@ class _Resolver:
             return path
         if isinstance(item, dict) and set(item) == {'name', 'value'}:
             value = item['value']
-            if isinstance(value, str):
+            if isinstance(value, str) and '$(' in value:
                 # As launch_ros does: evaluate substitutions, then read the text as YAML.
+                # Text without one stays text: value: 'true' is the string 'true' (a
+                # node declaring a bool then fails), value: true the bool.
                 text = sub(value)
                 try:
                     value = yaml.safe_load(text) if text.strip() else text

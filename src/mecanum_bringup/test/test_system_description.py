@@ -48,7 +48,7 @@ def test_node_command_line_matches_launch_ros(packages):
             - {name: label, value: 'two words'}
             remap: [{from: cmd_vel, to: /robot1/cmd_vel_safe}]
             respawn: 'True'
-            respawn_delay: '2.5'
+            respawn_delay: 2.5
             launch-prefix: xterm -title 'node a' -e
         """)
     system = load_system(launch, {'use_sim_time': 'true'}, find, environ={})
@@ -60,6 +60,34 @@ def test_node_command_line_matches_launch_ros(packages):
     assert node.respawn and node.respawn_delay_s == 2.5 and not node.shutdown_on_exit
     assert node.launch_prefix == ['xterm', '-title', 'node a', '-e']
     assert system.arguments == {'use_sim_time': 'true'}
+
+
+def test_parameter_values_take_the_types_ros2_launch_gives_them(packages, tmp_path):
+    """
+    Values with a substitution are read as YAML, quoted text without one stays text.
+
+    The expected types are those the real launch_ros 0.26.6 gave the same entries
+    (evaluate_parameters on this file's node, 2026-11-26): 'true' stays the string
+    'true', on which a node declaring use_sim_time a bool dies.
+    """
+    _, find = packages
+    path = write(tmp_path / 'types.launch.yaml', """
+        launch:
+        - arg: {name: x, default: 'true'}
+        - node:
+            pkg: pkg_a
+            exec: talker
+            param:
+            - {name: a, value: 'true'}
+            - {name: b, value: $(var x)}
+            - {name: c, value: true}
+            - {name: d, value: '1.5'}
+            - {name: e, value: 'x$(var x)'}
+            - {name: f, value: '$(var x)'}
+        """)
+    (node,) = load_system(path, {}, find, environ={}).nodes
+    assert node.parameters == [('a', 'true'), ('b', True), ('c', True), ('d', '1.5'),
+                               ('e', 'xtrue'), ('f', True)]
 
 
 def test_include_passes_arguments_and_scopes_set_env(packages):
@@ -102,7 +130,12 @@ def test_include_passes_arguments_and_scopes_set_env(packages):
      'does not exist'),
     ('launch:\n- node: {pkg: pkg_a, exec: x, respawn: maybe}', 'expected true or false'),
     ('launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: soon}', 'must be a number'),
-    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: "-1"}', 'must be >= 0'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: -1.0}', 'must be >= 0'),
+    # What ROS 2 launch's YAML frontend rejects (it checks types and never coerces).
+    ("launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: '1.0'}", 'decimal point, unquoted'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn_delay: 1}', 'decimal point, unquoted'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, respawn: true}', 'respawn must be text'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: 5}', 'name must be text'),
     ('launch:\n- node: {pkg: pkg_a, exec: x, on_exit: restart}', 'only "shutdown"'),
     ('launch:\n- arg: {name: a}\n- node: {pkg: pkg_a, exec: x}', 'has no default'),
     ('launch:\n- arg: {name: a, default: x, choices: [y, z]}\n- node: {pkg: p, exec: x}',
