@@ -62,6 +62,17 @@ def recording_summary(bag_dir: Path) -> str:
     return f'{messages} messages on {topics} topics in {files[0]}'
 
 
+def program_arguments(argv: Sequence[str]) -> list:
+    """
+    Return argv without ROS arguments and empty words.
+
+    ros2 launch runs the demo as a node (demo.launch.yaml): it appends ``--ros-args``
+    and passes an empty ``demo_args`` as an empty word.
+    """
+    from rclpy.utilities import remove_ros_args
+    return [word for word in remove_ros_args(['demo', *argv])[1:] if word]
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the tour and print where its report is; returns the exit code."""
     parser = argparse.ArgumentParser(prog='demo', description='The simulated mecanum robot '
@@ -78,7 +89,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--scenario', default=None, help='another scenario file to run')
     parser.add_argument('--no-compose', action='store_true',
                         help='run every node in its own process (default: composed)')
-    options = parser.parse_args(argv)
+    options = parser.parse_args(program_arguments(sys.argv[1:] if argv is None else argv))
     if options.real_time_factor == 0.0 and not options.lockstep:
         parser.error('--real-time-factor max needs --lockstep')
     try:
