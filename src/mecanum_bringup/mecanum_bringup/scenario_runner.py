@@ -206,7 +206,7 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
     entries: List[Dict] = [{'include': {
         'file': '$(find-pkg-share mecanum_bringup)/launch/robot.launch.yaml',
         'arg': [{'name': name, 'value': str(value)} for name, value in args.items()]}}]
-    sim_time = [{'name': 'use_sim_time', 'value': 'true'}]
+    sim_time = [{'name': 'use_sim_time', 'value': True}]   # a bool: quoted, it stays text
     if options.record:
         entries.append({'node': {'pkg': 'mecanum_bringup', 'exec': 'bag_recorder',
                                  'name': 'bag_recorder', 'param': sim_time + [
