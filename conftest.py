@@ -19,6 +19,7 @@ test runs alone anyway, and no lock is taken.
 
 import contextlib
 import fcntl
+import multiprocessing
 from pathlib import Path
 import tempfile
 import uuid
@@ -70,6 +71,10 @@ def pytest_configure(config):
         'markers', 'long: runs for a minute or more; started first')
     if getattr(config.option, 'numprocesses', None) and not config.option.testrunuid:
         config.option.testrunuid = uuid.uuid4().hex
+    # New processes by forkserver, not fork: a test process runs rclpy's and DDS's threads,
+    # and a child forked from it (ament_flake8's checker pool) once died in the garbage
+    # collector (segmentation fault) and hung its worker.
+    multiprocessing.set_start_method('forkserver', force=True)
 
 
 def pytest_collection_modifyitems(config, items):
