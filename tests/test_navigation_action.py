@@ -23,10 +23,11 @@ from geometry_msgs.msg import PoseStamped, TransformStamped, Twist
 from mecanum_bringup.system_description import load_system
 from mecanum_control.kinematics import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_interfaces.action import NavigateToPose
 from mecanum_localization.transforms import PlanarTransform, wrap_angle
+from mecanum_navigation import navigator as R   # the navigator's result codes
 from mecanum_navigation.map_io import OccupancyMap, save_map
 from mecanum_navigation.safety.zone import make_zone, zone_file_text
+from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav_msgs.msg import OccupancyGrid, Odometry, Path as PathMsg
 import numpy as np
 import pytest
@@ -48,7 +49,6 @@ MAP_TO_ODOM = PlanarTransform(1.0, 1.0, 0.3)
 RES = 0.05
 # Everything but the top right corner (x > 4.5, y > 2.5), map frame.
 ZONE = make_zone([(0.0, 0.0), (6.0, 0.0), (6.0, 2.5), (4.5, 2.5), (4.5, 4.0), (0.0, 4.0)])
-R = NavigateToPose.Result
 
 
 def write_room(directory: Path) -> Path:
@@ -259,8 +259,8 @@ def navigation(start_system, test_node, tmp_path):
     print(system.output())   # shown by pytest when the test failed
 
 
-def test_bad_goals_are_refused_and_the_zone_is_lethal_in_both_costmaps(navigation,
-                                                                     test_node):
+def test_bad_goals_are_refused_and_the_zone_is_lethal_in_both_costmaps(
+        navigation, test_node):
     """
     Goal in a wall, outside the zone or at its border, off the map, unreachable, NaN, frame.
 
@@ -385,6 +385,55 @@ def test_navigate_cancel_preempt_and_goal_pose(navigation, test_node):
     assert math.hypot(x - 2.0, y - 2.0) <= XY_TOLERANCE + 0.02
     assert abs(wrap_angle(yaw)) <= YAW_TOLERANCE + 0.02
     assert system.stop() == 0
+
+
+def test_nav2_clients_follow_waypoints_and_poses_and_get_zone_refusals(navigation, test_node):
+    """
+    Clients written against Nav2's types only drive the robot through poses.
+
+    nav2_msgs FollowWaypoints and NavigateThroughPoses, on Nav2's action names:
+
+    1. FollowWaypoints through three waypoints: SUCCEEDED, NONE, none missed, the
+       feedback's current_waypoint going 0, 1, 2, the robot at the last one;
+    2. NavigateThroughPoses whose second pose is outside the authorised zone: the
+       first is reached, then ABORTED with GOAL_OUTSIDE_ZONE and the zone named in
+       error_msg; number_of_poses_remaining 1 on the way to the first.
+    """
+    system, nav = navigation
+    waypoints_client = ActionClient(test_node.node, FollowWaypoints, 'follow_waypoints')
+    poses_client = ActionClient(test_node.node, NavigateThroughPoses, 'navigate_through_poses')
+    assert waypoints_client.wait_for_server(timeout_sec=20.0)
+    assert poses_client.wait_for_server(timeout_sec=20.0)
+
+    waypoints = [(1.0, 2.5, math.pi / 2), (2.0, 3.0, 0.0), (2.0, 1.5, -math.pi / 2)]
+    goal = FollowWaypoints.Goal(poses=[pose_stamped(*w) for w in waypoints])
+    feedback = []
+    handle = wait_future(waypoints_client.send_goal_async(
+        goal, feedback_callback=lambda msg: feedback.append(msg.feedback.current_waypoint)))
+    assert handle.accepted
+    response = wait_future(handle.get_result_async(), timeout=90.0)
+    assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.error_msg
+    assert (response.result.error_code, list(response.result.missed_waypoints)) == (R.NONE, [])
+    assert sorted(set(feedback)) == [0, 1, 2] and feedback == sorted(feedback)
+    x, y, yaw = nav.robot()
+    assert math.hypot(x - 2.0, y - 1.5) <= XY_TOLERANCE + 0.02
+    assert abs(wrap_angle(yaw + math.pi / 2)) <= YAW_TOLERANCE + 0.02
+    for number in (1, 2, 3):
+        system.wait_for_line(rf'\[navigator\].*route pose {number}/3 ended: NONE')
+
+    goal = NavigateThroughPoses.Goal(poses=[pose_stamped(1.5, 1.5, 0.0),
+                                            pose_stamped(5.3, 3.3, 0.0)])
+    remaining = []
+    handle = wait_future(poses_client.send_goal_async(
+        goal, feedback_callback=lambda msg: remaining.append(
+            msg.feedback.number_of_poses_remaining)))
+    assert handle.accepted
+    response = wait_future(handle.get_result_async(), timeout=60.0)
+    assert response.status == GoalStatus.STATUS_ABORTED
+    assert response.result.error_code == R.GOAL_OUTSIDE_ZONE, response.result.error_msg
+    assert 'outside the authorised zone' in response.result.error_msg
+    assert remaining and remaining[0] == 1
+    assert math.dist(nav.robot()[:2], (1.5, 1.5)) <= XY_TOLERANCE + 0.02
 
 
 def test_the_plan_goes_round_an_obstacle_the_map_lacks(navigation, test_node):

@@ -79,8 +79,9 @@ PathLike = Union[str, Path]
 Point = Tuple[float, float]
 Pose = Tuple[float, float, float]
 
-#: NavigateToPose result codes (mecanum_interfaces/action/NavigateToPose.action);
-#: test_scenario checks this table against the file.
+#: NavigateToPose result codes (error_code of nav2_msgs' NavigateToPose result, the
+#: navigator's values: mecanum_navigation.navigator); test_scenario checks this table
+#: against them.
 NAVIGATE_TO_POSE_ERRORS: Dict[str, int] = {
     'NONE': 0,
     'UNKNOWN': 9000,

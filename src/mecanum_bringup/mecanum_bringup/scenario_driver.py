@@ -32,7 +32,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from mecanum_bringup.scenario import command_sources
 from mecanum_control.node_main import make_executor
-from mecanum_interfaces.action import NavigateToPose
+from nav2_msgs.action import NavigateToPose
 from nav_msgs.msg import Odometry, Path
 import numpy as np
 import rclpy

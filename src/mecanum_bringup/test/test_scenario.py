@@ -20,7 +20,6 @@ import yaml
 
 PACKAGE = Path(__file__).resolve().parents[1]
 SCENARIOS = PACKAGE / 'scenarios'
-ACTION_FILE = PACKAGE.parent / 'mecanum_interfaces' / 'action' / 'NavigateToPose.action'
 APARTMENT = load_world(find_world('apartment'))
 ROBOT = load_robot_config(default_config_path())
 HALF_PI = math.pi / 2
@@ -237,11 +236,12 @@ def test_find_scenarios_lists_yaml_files_sorted(tmp_path):
         find_scenarios(tmp_path / 'missing')
 
 
-def test_the_error_table_matches_the_action_file():
-    text = ACTION_FILE.read_text()
-    result = text.split('---')[1]
-    constants = dict(re.findall(r'^\s*uint16\s+([A-Z_]+)\s*=\s*(\d+)', result, re.MULTILINE))
-    assert {name: int(code) for name, code in constants.items()} == NAVIGATE_TO_POSE_ERRORS
+def test_the_error_table_matches_the_navigator_codes():
+    from mecanum_navigation import navigator
+    codes = {name: value for name, value in vars(navigator).items()
+             if re.fullmatch(r'[A-Z_]+', name) and isinstance(value, int) and
+             (value == 0 or value >= 9000)}
+    assert codes == NAVIGATE_TO_POSE_ERRORS
 
 
 # --- bad files -----------------------------------------------------------------------

@@ -84,10 +84,14 @@ Twist2D = Tuple[float, float, float]
 Point = Tuple[float, float]
 PlanFunction = Callable[[Costmap2D, Point, Point], Sequence[Point]]
 
-# Result codes: the values of mecanum_interfaces/action/NavigateToPose Result constants.
+# Result codes (error_code of nav2_msgs' NavigateToPose, NavigateThroughPoses and
+# FollowWaypoints results): Nav2's own (NONE, and 9000-9003 as Nav2 defines them from
+# Kilted on), then this navigator's from 9100. Every value is unique.
 NONE = 0
 UNKNOWN = 9000
+FAILED_TO_LOAD_BEHAVIOR_TREE = 9001   # never sent: the navigator has one fixed behaviour
 TF_ERROR = 9002
+TIMEOUT = 9003                        # never sent: goals have no time limit here
 GOAL_OUTSIDE_ZONE = 9100
 GOAL_IN_OBSTACLE = 9101
 GOAL_OUTSIDE_MAP = 9102

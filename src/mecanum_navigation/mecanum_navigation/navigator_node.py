@@ -5,9 +5,17 @@ It also does the jobs of Nav2's planner, controller and behaviour servers and of
 costmaps. The state machine is :mod:`mecanum_navigation.navigator` (pure); this node only
 translates ROS messages, parameters and transforms for it.
 
-Action server ``navigate_to_pose`` (mecanum_interfaces/NavigateToPose: nav2_msgs' with
-this project's error codes). Subscribes ``goal_pose`` (geometry_msgs/PoseStamped, what
-RViz's "2D Goal Pose" sends: a navigation without an action client, its end is logged),
+Action servers, Nav2's types and names: ``navigate_to_pose`` (nav2_msgs/NavigateToPose),
+``navigate_through_poses`` (nav2_msgs/NavigateThroughPoses: the poses one after the
+other, the first that fails ends it) and ``follow_waypoints`` (nav2_msgs/FollowWaypoints:
+number_of_loops, goal_index; a waypoint that fails is in missed_waypoints and ends the
+route unless ``waypoint_follower.stop_on_failure`` is false); their sequencing is
+:mod:`mecanum_navigation.route`. A failed goal's ``error_code`` is one of
+mecanum_navigation.navigator's codes (9000 UNKNOWN ... 9107 INVALID_GOAL; e.g. 9100
+GOAL_OUTSIDE_ZONE: the authorised zone's refusal), ``error_msg`` says why in words.
+A new goal of any kind preempts the running one (PREEMPTED). Subscribes ``goal_pose``
+(geometry_msgs/PoseStamped, what RViz's "2D Goal Pose" and Foxglove send: a navigation
+without an action client, its end is logged),
 ``map`` (nav_msgs/OccupancyGrid, transient local) for the global costmap (static layer,
 ``keepout_zones``, the authorised zone, an obstacle layer from the scan unless
 ``global_costmap.obstacle_layer`` is false, inflation with the inscribed radius
@@ -58,7 +66,6 @@ from geometry_msgs.msg import PoseStamped, Twist
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, declare_typed
-from mecanum_interfaces.action import NavigateToPose
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import (
     PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
@@ -71,7 +78,10 @@ from mecanum_navigation.local_controller import ControllerParams, LocalControlle
     ProgressChecker
 from mecanum_navigation.map_io import OccupancyMap
 from mecanum_navigation.planner import GridPlanner
+from mecanum_navigation.route import Route
 from mecanum_navigation.safety.zone import load_zone_file, Zone, ZoneError
+from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
+from nav2_msgs.msg import MissedWaypoint
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 import numpy as np
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -81,7 +91,7 @@ from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import LaserScan
 import yaml
 
-#: Result code -> its name in NavigateToPose.Result (for the log).
+#: Result code (mecanum_navigation.navigator's) -> its name (for the log).
 CODE_NAMES = {getattr(nav, name): name for name in (
     'NONE', 'UNKNOWN', 'TF_ERROR', 'GOAL_OUTSIDE_ZONE', 'GOAL_IN_OBSTACLE', 'GOAL_OUTSIDE_MAP',
     'NO_VALID_PATH', 'STUCK', 'CANCELED', 'PREEMPTED', 'INVALID_GOAL')}
@@ -113,6 +123,7 @@ class NavigatorNode(Node):
         self.odom_frame = self._declare('odom_frame', 'odom')
         self.base_frame = self._declare('robot_base_frame', 'base_link')
         odom_topic = self._declare('odom_topic', 'odometry/filtered')
+        self.waypoints_stop_on_failure = self._declare('waypoint_follower.stop_on_failure', True)
         for name, frame in (('global_frame', self.global_frame),
                             ('odom_frame', self.odom_frame),
                             ('robot_base_frame', self.base_frame), ('odom_topic', odom_topic)):
@@ -193,6 +204,9 @@ class NavigatorNode(Node):
         self.new_goals = deque()
         self.goal_handles: Dict[Hashable, object] = {}
         self.results: Dict[Hashable, nav.Outcome] = {}
+        #: Route goals (NavigateThroughPoses, FollowWaypoints) by goal id: (handle, Route).
+        self.routes: Dict[bytes, tuple] = {}
+        self.route_legs = 0
         self.topic_goals = 0
         self.last_local_update_s = -math.inf
         self.last_local_publish_s = -math.inf
@@ -219,6 +233,13 @@ class NavigatorNode(Node):
             goal_callback=lambda _request: GoalResponse.ACCEPT,
             handle_accepted_callback=self.on_goal_accepted,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT)
+        self.route_servers = [ActionServer(
+            self, action, name, self.on_execute_route,
+            goal_callback=self.on_route_goal,
+            handle_accepted_callback=self.on_route_accepted,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT)
+            for action, name in ((NavigateThroughPoses, 'navigate_through_poses'),
+                                 (FollowWaypoints, 'follow_waypoints'))]
         self.control_timer = self.create_timer(1.0 / frequency, self.on_control_timer)
         self.get_logger().info(
             f'Navigator (Nav2 bt_navigator) started: {frequency:g} Hz control, '
@@ -541,6 +562,11 @@ class NavigatorNode(Node):
         for goal_id, handle in self.goal_handles.items():
             if handle.is_cancel_requested:
                 self.navigator.cancel(goal_id)
+        for handle, route in self.routes.values():
+            active = self.navigator.active_goal_id
+            if handle.is_cancel_requested and _is_leg(active) and active[1] == bytes(
+                    handle.goal_id.uuid):
+                self.navigator.cancel(active)
         out = self.navigator.tick(self._tick_inputs(now_s))
         if out.clear_local_costmap:   # Nav2's recovery clears both costmaps' obstacles
             self.obstacle_layer.clear()
@@ -568,6 +594,9 @@ class NavigatorNode(Node):
     def _finish(self, outcome: nav.Outcome) -> None:
         """Log a goal's end and, for an action goal, execute it to send its result."""
         name = CODE_NAMES.get(outcome.code, str(outcome.code))
+        if _is_leg(outcome.goal_id):
+            self._leg_ended(outcome, name)
+            return
         source = 'goal_pose goal' if isinstance(outcome.goal_id, tuple) else 'goal'
         text = f'{source} ended: {name}: {outcome.message}'
         if outcome.code == nav.NONE:
@@ -578,6 +607,80 @@ class NavigatorNode(Node):
         if handle is not None:
             self.results[outcome.goal_id] = outcome
             handle.execute()
+
+    # --- routes: NavigateThroughPoses, FollowWaypoints -----------------------------
+
+    def on_route_goal(self, request) -> GoalResponse:
+        """Accept a route goal that has poses (and, for FollowWaypoints, a valid start)."""
+        if not request.poses:
+            self.get_logger().warning('route goal refused: it has no poses')
+            return GoalResponse.REJECT
+        if getattr(request, 'goal_index', 0) >= len(request.poses):
+            self.get_logger().warning(
+                f'waypoints goal refused: goal_index {request.goal_index} is not one of its '
+                f'{len(request.poses)} waypoints')
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def on_route_accepted(self, goal_handle) -> None:
+        """Start a route: its first pose is queued as a leg (the control loop starts it)."""
+        request = goal_handle.request
+        waypoints = isinstance(request, FollowWaypoints.Goal)
+        route = Route(len(request.poses),
+                      start_index=request.goal_index if waypoints else 0,
+                      loops=request.number_of_loops if waypoints else 0,
+                      stop_on_failure=self.waypoints_stop_on_failure if waypoints else True)
+        key = bytes(goal_handle.goal_id.uuid)
+        self.routes[key] = (goal_handle, route)
+        self.get_logger().info(
+            f'{"waypoints" if waypoints else "through-poses"} goal: {route.count} poses'
+            + (f' from {route.start_index}, {route.loops} extra loop(s)' if waypoints else ''))
+        self._queue_leg(key)
+
+    def _queue_leg(self, key: bytes) -> None:
+        handle, route = self.routes[key]
+        self.route_legs += 1
+        self.new_goals.append((('route', key, route.index, self.route_legs),
+                               handle.request.poses[route.index]))
+
+    def _leg_ended(self, outcome: nav.Outcome, name: str) -> None:
+        """Take the end of a route's leg: queue the next pose, or end the route."""
+        key, index = outcome.goal_id[1], outcome.goal_id[2]
+        handle, route = self.routes[key]
+        text = f'route pose {index + 1}/{route.count} ended: {name}: {outcome.message}'
+        if outcome.code == nav.NONE:
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
+        if outcome.code in (nav.CANCELED, nav.PREEMPTED):
+            route.abort(outcome.code, outcome.message)
+        elif route.leg_ended(outcome.code, outcome.message) is not None:
+            self._queue_leg(key)
+            return
+        handle.execute()
+
+    def on_execute_route(self, goal_handle):
+        """Set a finished route's terminal state; return its result."""
+        key = bytes(goal_handle.goal_id.uuid)
+        _, route = self.routes.pop(key)
+        waypoints = isinstance(goal_handle.request, FollowWaypoints.Goal)
+        result = (FollowWaypoints if waypoints else NavigateThroughPoses).Result()
+        result.error_code, result.error_msg = route.error_code, route.error_msg
+        if waypoints:
+            for index, code, _message in route.missed:
+                missed = MissedWaypoint(index=index, error_code=code)
+                missed.goal = goal_handle.request.poses[index]
+                result.missed_waypoints.append(missed)
+        if route.error_code == nav.NONE:
+            goal_handle.succeed()
+        elif route.error_code == nav.CANCELED and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        self.get_logger().info(
+            f'route ended: {CODE_NAMES.get(route.error_code, route.error_code)}'
+            + (f', {len(route.missed)} waypoint(s) missed' if waypoints else ''))
+        return result
 
     def on_execute(self, goal_handle) -> NavigateToPose.Result:
         """Set the terminal state of a goal whose outcome is known; return its result."""
@@ -621,10 +724,18 @@ class NavigatorNode(Node):
 
     def _publish_feedback(self, feedback: nav.Feedback, now) -> None:
         """Publish the feedback of an action goal (goal_pose goals have no client)."""
-        handle = self.goal_handles.get(feedback.goal_id)
+        route = None
+        if _is_leg(feedback.goal_id):
+            handle, route = self.routes.get(feedback.goal_id[1], (None, None))
+        else:
+            handle = self.goal_handles.get(feedback.goal_id)
         if handle is None:
             return
-        msg = NavigateToPose.Feedback()
+        if isinstance(handle.request, FollowWaypoints.Goal):
+            handle.publish_feedback(FollowWaypoints.Feedback(current_waypoint=route.index))
+            return
+        msg = (NavigateToPose.Feedback() if route is None
+               else NavigateThroughPoses.Feedback(number_of_poses_remaining=route.poses_remaining))
         msg.current_pose.header.frame_id = self.global_frame
         msg.current_pose.header.stamp = now.to_msg()
         x, y, yaw = feedback.pose_in_map
@@ -664,6 +775,11 @@ def _warm_up(planner: GridPlanner, controller: LocalController) -> None:
     controller.compute_velocity((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [(0.0, 0.0), (0.2, 0.0, 0.0)],
                                 costmap)
     controller.reset()
+
+
+def _is_leg(goal_id) -> bool:
+    """Whether a navigator goal id is a route's leg: ('route', route key, index, n)."""
+    return isinstance(goal_id, tuple) and goal_id[0] == 'route'
 
 
 def _pose(transform: PlanarTransform) -> nav.Pose2D:

@@ -207,14 +207,16 @@ def test_params_take_a_zone_or_none():
     assert NavigatorParams(authorised_zone=ZONE).authorised_zone is ZONE
 
 
-def test_result_codes_are_those_of_the_action():
-    """The navigator's codes equal mecanum_interfaces/action/NavigateToPose's."""
-    action = pytest.importorskip('mecanum_interfaces.action')
-    result = action.NavigateToPose.Result
-    for name in ('NONE', 'UNKNOWN', 'TF_ERROR', 'GOAL_OUTSIDE_ZONE', 'GOAL_IN_OBSTACLE',
-                 'GOAL_OUTSIDE_MAP', 'NO_VALID_PATH', 'STUCK', 'CANCELED', 'PREEMPTED',
-                 'INVALID_GOAL'):
-        assert getattr(nav, name) == getattr(result, name), name
+def test_result_codes_agree_with_nav2_and_are_unique():
+    """NONE is nav2_msgs' NONE, Nav2's own codes keep their values, no two codes are equal."""
+    action = pytest.importorskip('nav2_msgs.action')
+    assert nav.NONE == action.NavigateToPose.Result.NONE == 0
+    assert (nav.UNKNOWN, nav.FAILED_TO_LOAD_BEHAVIOR_TREE, nav.TF_ERROR, nav.TIMEOUT) == (
+        9000, 9001, 9002, 9003)
+    codes = [nav.NONE, nav.UNKNOWN, nav.FAILED_TO_LOAD_BEHAVIOR_TREE, nav.TF_ERROR,
+             nav.TIMEOUT, nav.GOAL_OUTSIDE_ZONE, nav.GOAL_IN_OBSTACLE, nav.GOAL_OUTSIDE_MAP,
+             nav.NO_VALID_PATH, nav.STUCK, nav.CANCELED, nav.PREEMPTED, nav.INVALID_GOAL]
+    assert len(set(codes)) == len(codes)
 
 
 # --- pure helpers, by hand ------------------------------------------------------------
