@@ -6,8 +6,9 @@ setup has no ``launch`` package and runs the same ``.launch.yaml`` files with
 mecanum_bringup's launch_runner, which once accepted what the real launch rejects (a
 quoted ``respawn_delay``, ``use_sim_time`` passed as the string 'true'). So these tests
 build the upstream Jazzy launch, launch_yaml, launch_xml and launch_ros (the sources in
-``../shared/vendor``, or ``$MECANUM_LAUNCH_VENDOR``; the tests skip, saying so, where
-they are absent) into a prefix under build/ with colcon, and run each launch file
+``shared/vendor`` beside the repository or in a folder above it, or
+``$MECANUM_LAUNCH_VENDOR``; the tests skip, saying so, where they are absent) into a
+prefix under build/ with colcon, and run each launch file
 through the real LaunchService (tests/real_launch/run_launch_file.py) with its default
 arguments, in a ROS domain of its own:
 
@@ -37,7 +38,20 @@ import pytest
 pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
-VENDOR = Path(os.environ.get('MECANUM_LAUNCH_VENDOR', REPO.parent / 'shared' / 'vendor'))
+TARBALL_FOLDER = Path('shared') / 'vendor'
+
+
+def vendor_folder() -> Path:
+    """Return $MECANUM_LAUNCH_VENDOR, else the first shared/vendor beside the repo or above."""
+    if os.environ.get('MECANUM_LAUNCH_VENDOR'):
+        return Path(os.environ['MECANUM_LAUNCH_VENDOR'])
+    for folder in REPO.parents:
+        if (folder / TARBALL_FOLDER).is_dir():
+            return folder / TARBALL_FOLDER
+    return REPO.parent / TARBALL_FOLDER
+
+
+VENDOR = vendor_folder()
 TARBALLS = ('ros2-launch-jazzy-3.4.3.tar.gz', 'ros2-launch_yaml-jazzy-3.4.3.tar.gz',
             'ros2-launch_xml-jazzy-3.4.3.tar.gz', 'ros2-launch_ros-jazzy-0.26.6.tar.gz')
 DRIVER = REPO / 'tests' / 'real_launch' / 'run_launch_file.py'
