@@ -671,12 +671,7 @@ class NavigatorNode(Node):
                 missed = MissedWaypoint(index=index, error_code=code)
                 missed.goal = goal_handle.request.poses[index]
                 result.missed_waypoints.append(missed)
-        if route.error_code == nav.NONE:
-            goal_handle.succeed()
-        elif route.error_code == nav.CANCELED and goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-        else:
-            goal_handle.abort()
+        _end_goal(goal_handle, route.error_code)
         self.get_logger().info(
             f'route ended: {CODE_NAMES.get(route.error_code, route.error_code)}'
             + (f', {len(route.missed)} waypoint(s) missed' if waypoints else ''))
@@ -693,12 +688,7 @@ class NavigatorNode(Node):
             return result
         result.error_code = outcome.code
         result.error_msg = outcome.message
-        if outcome.code == nav.NONE:
-            goal_handle.succeed()
-        elif outcome.code == nav.CANCELED and goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-        else:
-            goal_handle.abort()
+        _end_goal(goal_handle, outcome.code)
         return result
 
     # --- outputs ---------------------------------------------------------------------
@@ -775,6 +765,16 @@ def _warm_up(planner: GridPlanner, controller: LocalController) -> None:
     controller.compute_velocity((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [(0.0, 0.0), (0.2, 0.0, 0.0)],
                                 costmap)
     controller.reset()
+
+
+def _end_goal(goal_handle, code: int) -> None:
+    """Set an action goal's terminal state from its result code."""
+    if code == nav.NONE:
+        goal_handle.succeed()
+    elif code == nav.CANCELED and goal_handle.is_cancel_requested:
+        goal_handle.canceled()
+    else:
+        goal_handle.abort()
 
 
 def _is_leg(goal_id) -> bool:
