@@ -1,6 +1,8 @@
 """
 Integration: map_server publishes a Nav2 map on /map; map_saver_cli writes it back.
 
+map_server's load_map service (nav2_msgs/LoadMap) swaps the map, or says why not.
+
 Real processes in the test's own ROS domain; the round trip through DDS and the files
 must be lossless in every mode (trinary, scale and raw maps come back the same).
 """
@@ -11,6 +13,7 @@ import subprocess
 import time
 
 from mecanum_navigation.map_io import find_map_file, load_map, OccupancyMap, save_map
+from nav2_msgs.srv import LoadMap
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
@@ -93,3 +96,43 @@ def test_saver_without_a_map_gives_up_with_an_error(ros_env, tmp_path):
     assert result.returncode == 1
     assert 'No map received' in result.stdout + result.stderr
     assert not (tmp_path / 'none.yaml').exists()
+
+
+def test_load_map_swaps_the_map_or_says_why_not(start_system, test_node, tmp_path):
+    """
+    Nav2's load_map serves a good map and refuses bad ones with Nav2's result codes.
+
+    A file:// URL of the lab map: served, published and returned. A missing file, a bad
+    YAML and a missing image: their result codes, and the old map stays.
+    """
+    lab = load_map(find_map_file('lab_map'))
+    system = start_system('mecanum_navigation', 'map_server.launch.yaml', 'map:=apartment')
+    system.wait_for_line(r'\[map_server\].*Serving map')
+    maps = []
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    test_node.node.create_subscription(OccupancyGrid, 'map', maps.append, latched)
+    client = test_node.node.create_client(LoadMap, 'map_server/load_map')
+
+    response = test_node.call(client, LoadMap.Request(
+        map_url=f'file://{find_map_file("lab_map")}'))
+    assert response.result == LoadMap.Response.RESULT_SUCCESS
+    assert (response.map.info.width, response.map.info.height) == (lab.width, lab.height)
+    assert np.array_equal(np.array(response.map.data, dtype=np.int8).reshape(lab.data.shape),
+                          lab.data)
+    deadline = time.monotonic() + 10.0
+    while not any(m.info.width == lab.width for m in maps) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert any(m.info.width == lab.width for m in maps), 'the new map was not published'
+
+    bad_yaml = tmp_path / 'bad.yaml'
+    bad_yaml.write_text('image: x.pgm\nresolution: -1\norigin: [0, 0, 0]\n')
+    no_image = tmp_path / 'no_image.yaml'
+    no_image.write_text('image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n'
+                        'negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.2\n')
+    for url, result in ((str(tmp_path / 'none.yaml'), 'RESULT_MAP_DOES_NOT_EXIST'),
+                        (f'file://{bad_yaml}', 'RESULT_INVALID_MAP_METADATA'),
+                        (str(no_image), 'RESULT_INVALID_MAP_DATA')):
+        response = test_node.call(client, LoadMap.Request(map_url=url))
+        assert response.result == getattr(LoadMap.Response, result), url
+    system.wait_for_line(r'\[map_server\].*load_map: .*still serving the previous map')
+    assert system.stop() == 0

@@ -77,6 +77,10 @@ class MapError(ValueError):
     """A malformed map YAML or image; the message names the file and the problem."""
 
 
+class MapImageError(MapError):
+    """A map's image is missing, unreadable or not a PGM (its YAML was fine)."""
+
+
 @dataclass(eq=False)
 class OccupancyMap:
     """
@@ -209,7 +213,7 @@ def load_map(yaml_path: PathLike) -> OccupancyMap:
     try:
         pixels = read_pgm(image_path)
     except MapError as error:
-        raise MapError(f'{yaml_path}: {error}') from None
+        raise MapImageError(f'{yaml_path}: {error}') from None
     cells = pixels_to_cells(pixels, mode, bool(negate), occupied_thresh, free_thresh)
     return OccupancyMap(float(resolution), tuple(float(v) for v in origin), np.flipud(cells))
 

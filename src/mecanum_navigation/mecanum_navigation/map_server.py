@@ -5,7 +5,12 @@ Loads a Nav2 map (YAML + PGM, ``mecanum_navigation.map_io``: image, resolution,
 origin, negate, occupied_thresh, free_thresh, mode trinary/scale/raw, the same pixel
 interpretation as nav2_map_server) and publishes it on ``topic_name`` ('map';
 nav_msgs/OccupancyGrid, transient local, so late subscribers get it, as with Nav2) in
-``frame_id`` ('map'). Service ``~/map`` (nav_msgs/GetMap) returns it too. Parameter
+``frame_id`` ('map'). Service ``~/map`` (nav_msgs/GetMap) returns it too; service
+``~/load_map`` (nav2_msgs/LoadMap, as Nav2's map server) loads another map from
+``map_url`` (``file:///path/map.yaml``, ``package://PKG/path`` or what yaml_filename
+takes), publishes and returns it: RESULT_MAP_DOES_NOT_EXIST when there is no such file,
+RESULT_INVALID_MAP_METADATA for a bad YAML, RESULT_INVALID_MAP_DATA for a bad image; the
+map served before stays then. Parameter
 ``yaml_filename`` (required): a path, a ``package://PKG/path`` in a package's share
 directory, or the name of a map in this package's maps/ (``apartment``, ``lab_map``).
 A missing or malformed map ends the node with one FATAL line naming the file and the
@@ -16,7 +21,8 @@ import sys
 
 from mecanum_control.node_main import run_node
 from mecanum_navigation.grid_messages import occupancy_grid
-from mecanum_navigation.map_io import find_map_file, load_map, MapError
+from mecanum_navigation.map_io import find_map_file, load_map, MapError, MapImageError
+from nav2_msgs.srv import LoadMap
 from nav_msgs.msg import OccupancyGrid
 from nav_msgs.srv import GetMap
 from rclpy.node import Node
@@ -43,6 +49,8 @@ class MapServer(Node):
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.map_pub = self.create_publisher(OccupancyGrid, topic_name, latched)
         self.map_srv = self.create_service(GetMap, '~/map', self.on_get_map)
+        self.load_srv = self.create_service(LoadMap, '~/load_map', self.on_load_map)
+        self.frame_id = frame_id
         self.map_pub.publish(self.map_msg)
         self.get_logger().info(
             f'Serving map {path} ({occupancy.width} x {occupancy.height} cells at '
@@ -51,6 +59,35 @@ class MapServer(Node):
     def on_get_map(self, _request, response):
         """Return the map (nav_msgs/GetMap)."""
         response.map = self.map_msg
+        return response
+
+    def on_load_map(self, request, response):
+        """Load, publish and return the map at request.map_url (nav2_msgs/LoadMap)."""
+        url = request.map_url.strip()
+        if url.startswith('file://'):
+            url = url[len('file://'):]
+        try:
+            path = find_map_file(url)
+        except (MapError, LookupError) as error:
+            self.get_logger().error(f'load_map: {error}')
+            response.result = LoadMap.Response.RESULT_MAP_DOES_NOT_EXIST
+            return response
+        try:
+            occupancy = load_map(path)
+        except MapError as error:
+            self.get_logger().error(f'load_map: {error}; still serving the previous map')
+            response.result = (LoadMap.Response.RESULT_INVALID_MAP_DATA
+                               if isinstance(error, MapImageError)
+                               else LoadMap.Response.RESULT_INVALID_MAP_METADATA)
+            return response
+        self.map_msg = occupancy_grid(occupancy, self.frame_id,
+                                      self.get_clock().now().to_msg())
+        self.map_pub.publish(self.map_msg)
+        self.get_logger().info(
+            f'Serving map {path} ({occupancy.width} x {occupancy.height} cells at '
+            f'{occupancy.resolution_m:g} m), loaded on request')
+        response.map = self.map_msg
+        response.result = LoadMap.Response.RESULT_SUCCESS
         return response
 
 
