@@ -1,7 +1,8 @@
 """
 Integration: map_server publishes a Nav2 map on /map; map_saver_cli writes it back.
 
-map_server's load_map service (nav2_msgs/LoadMap) swaps the map, or says why not.
+map_server's load_map service (nav2_msgs/LoadMap) swaps the map, or says why not;
+map_saver_server's save_map (nav2_msgs/SaveMap) writes the served map.
 
 Real processes in the test's own ROS domain; the round trip through DDS and the files
 must be lossless in every mode (trinary, scale and raw maps come back the same).
@@ -13,11 +14,12 @@ import subprocess
 import time
 
 from mecanum_navigation.map_io import find_map_file, load_map, OccupancyMap, save_map
-from nav2_msgs.srv import LoadMap
+from nav2_msgs.srv import LoadMap, SaveMap
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
+import yaml
 
 pytestmark = pytest.mark.integration
 
@@ -135,4 +137,36 @@ def test_load_map_swaps_the_map_or_says_why_not(start_system, test_node, tmp_pat
         response = test_node.call(client, LoadMap.Request(map_url=url))
         assert response.result == getattr(LoadMap.Response, result), url
     system.wait_for_line(r'\[map_server\].*load_map: .*still serving the previous map')
+    assert system.stop() == 0
+
+
+def test_save_map_service_writes_the_served_map(start_system, test_node, tmp_path):
+    """
+    Nav2's map_saver/save_map writes the latched map; a bad request is refused.
+
+    The lab map round-trips through map_server and the saver server unchanged; a
+    request for a PNG image and one for a topic nobody publishes return false.
+    """
+    lab = load_map(find_map_file('lab_map'))
+    launch = tmp_path / 'saver.launch.yaml'
+    launch.write_text(yaml.safe_dump({'launch': [
+        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_server', 'name': 'map_server',
+                  'param': [{'name': 'yaml_filename', 'value': 'lab_map'}]}},
+        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_saver_server',
+                  'name': 'map_saver', 'param': [{'name': 'save_map_timeout', 'value': 1.0}]}},
+    ]}))
+    system = start_system(str(launch))
+    system.wait_for_line(r'\[map_saver\].*Map saver ready on /map_saver/save_map')
+    client = test_node.node.create_client(SaveMap, 'map_saver/save_map')
+    saved = tmp_path / 'saved'
+    response = test_node.call(client, SaveMap.Request(map_url=f'file://{saved}'),
+                              timeout=30.0)
+    assert response.result is True
+    assert np.array_equal(load_map(saved.with_suffix('.yaml')).data, lab.data)
+    for request in (SaveMap.Request(map_url=str(tmp_path / 'png'), image_format='png'),
+                    SaveMap.Request(map_url=str(tmp_path / 'none'), map_topic='no_map')):
+        assert test_node.call(client, request, timeout=30.0).result is False
+    system.wait_for_line(r'\[map_saver\].*save_map refused: image_format .png.')
+    system.wait_for_line(r'\[map_saver\].*save_map: no map on no_map within 1 s')
+    assert not (tmp_path / 'png.yaml').exists() and not (tmp_path / 'none.yaml').exists()
     assert system.stop() == 0

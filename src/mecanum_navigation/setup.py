@@ -38,6 +38,7 @@ setup(
         'console_scripts': [
             'map_server = mecanum_navigation.map_server:main',
             'map_saver_cli = mecanum_navigation.map_saver:main',
+            'map_saver_server = mecanum_navigation.map_saver_server:main',
             'navigator = mecanum_navigation.navigator_node:main',
             'velocity_smoother = mecanum_navigation.velocity_smoother_node:main',
             'collision_monitor = mecanum_navigation.safety.collision_monitor_node:main',
