@@ -22,13 +22,55 @@ import argparse
 from pathlib import Path
 import sys
 import time
+from typing import Optional
 
 from mecanum_navigation.grid_messages import occupancy_map
 from mecanum_navigation.map_io import (
     MapError, MODES, SAVE_FREE_THRESH, save_map, SAVE_OCCUPIED_THRESH)
 from nav_msgs.msg import OccupancyGrid
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+
+
+def take_latched_map(node: Node, topic: str, timeout_s: float) -> Optional[OccupancyGrid]:
+    """
+    Return one map from topic (transient local), or None after timeout_s.
+
+    Spins node alone, on an executor of its own (map_saver_server calls it from a service
+    callback, where the node's own executor is busy), then drops the subscription.
+    """
+    received = []
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    subscription = node.create_subscription(OccupancyGrid, topic, received.append, latched)
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while not received and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        executor.shutdown()
+        node.destroy_subscription(subscription)
+    return received[-1] if received else None
+
+
+def write_map(msg: OccupancyGrid, yaml_path: Path, mode: str, occupied_thresh: float,
+              free_thresh: float, logger) -> None:
+    """
+    Write a received map as a Nav2 map (YAML + PGM) with map_io.save_map.
+
+    In scale mode unknown cells are written as grey 205, with a warning. Raises
+    MapError, OSError or ValueError when it cannot be written.
+    """
+    grid = occupancy_map(msg)
+    unknown = int((grid.data < 0).sum())
+    if mode == 'scale' and unknown:
+        logger.warning(f'{unknown} unknown cell(s) are written as grey 205 and load back '
+                       'as a scale value (a PGM has no alpha channel)')
+    save_map(grid, yaml_path, occupied_thresh=occupied_thresh, free_thresh=free_thresh,
+             mode=mode, allow_unknown_loss=True)
 
 
 def main(args=None) -> int:
@@ -51,31 +93,21 @@ def main(args=None) -> int:
         parser.error('need 0 <= --free < --occ <= 1')
     rclpy.init(args=args)
     node = rclpy.create_node('map_saver')
-    received = []
-    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    node.create_subscription(OccupancyGrid, options.map_topic, received.append, latched)
-    deadline = time.monotonic() + options.timeout
+    received = None
     try:
-        while not received and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
+        received = take_latched_map(node, options.map_topic, options.timeout)
     except KeyboardInterrupt:
         pass
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
     logger = rclpy.logging.get_logger('map_saver')
-    if not received:
+    if received is None:
         logger.error(f'No map received on {options.map_topic} within {options.timeout:g} s')
         return 1
     yaml_path = Path(options.name).expanduser().with_suffix('.yaml')
     try:
-        grid = occupancy_map(received[-1])
-        unknown = int((grid.data < 0).sum())
-        if options.mode == 'scale' and unknown:
-            logger.warning(f'{unknown} unknown cell(s) are written as grey 205 and load back '
-                           'as a scale value (a PGM has no alpha channel)')
-        save_map(grid, yaml_path, occupied_thresh=options.occ, free_thresh=options.free,
-                 mode=options.mode, allow_unknown_loss=True)
+        write_map(received, yaml_path, options.mode, options.occ, options.free, logger)
     except (MapError, OSError, ValueError) as error:
         logger.error(f'Could not save the map: {error}')
         return 1

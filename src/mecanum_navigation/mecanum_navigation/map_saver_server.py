@@ -17,19 +17,14 @@ Parameters: ``save_map_timeout`` (2.0 s: how long to wait for the map),
 
 from pathlib import Path
 import sys
-import time
 
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
-from mecanum_navigation.grid_messages import occupancy_map
-from mecanum_navigation.map_io import (
-    MapError, MODES, SAVE_FREE_THRESH, save_map, SAVE_OCCUPIED_THRESH)
+from mecanum_navigation.map_io import MapError, MODES, SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH
+from mecanum_navigation.map_saver import take_latched_map, write_map
 from nav2_msgs.srv import SaveMap
-from nav_msgs.msg import OccupancyGrid
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
 
 
 class MapSaverServer(Node):
@@ -76,8 +71,7 @@ class MapSaverServer(Node):
             return response
         yaml_path = Path(url).expanduser().with_suffix('.yaml')
         try:
-            save_map(occupancy_map(msg), yaml_path, occupied_thresh=occupied,
-                     free_thresh=free, mode=mode, allow_unknown_loss=True)
+            write_map(msg, yaml_path, mode, occupied, free, self.get_logger())
         except (MapError, OSError, ValueError) as error:
             self.get_logger().error(f'save_map: could not save the map: {error}')
             return response
@@ -90,24 +84,15 @@ class MapSaverServer(Node):
         """
         Return one map from topic, or None after save_map_timeout.
 
-        A node of its own with its own executor: this service callback runs in the
-        node's executor, which cannot deliver the map meanwhile.
+        Through a node of its own: this service callback runs in the node's executor,
+        which cannot deliver the map meanwhile.
         """
         helper = rclpy.create_node('map_saver_listener', context=self.context,
                                    start_parameter_services=False)
-        received = []
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        helper.create_subscription(OccupancyGrid, topic, received.append, latched)
-        executor = SingleThreadedExecutor(context=self.context)
-        executor.add_node(helper)
-        deadline = time.monotonic() + self.timeout_s
         try:
-            while not received and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
+            return take_latched_map(helper, topic, self.timeout_s)
         finally:
-            executor.shutdown()
             helper.destroy_node()
-        return received[-1] if received else None
 
 
 def main(args=None) -> int:

@@ -44,17 +44,21 @@ class MapServer(Node):
             occupancy = load_map(path)
         except (MapError, LookupError) as error:
             raise ValueError(f'cannot load map: {error}') from None
-        self.map_msg = occupancy_grid(occupancy, frame_id, self.get_clock().now().to_msg())
+        self.frame_id = frame_id
 
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.map_pub = self.create_publisher(OccupancyGrid, topic_name, latched)
         self.map_srv = self.create_service(GetMap, '~/map', self.on_get_map)
         self.load_srv = self.create_service(LoadMap, '~/load_map', self.on_load_map)
-        self.frame_id = frame_id
+        self._serve(path, occupancy, f' on {self.map_pub.topic_name} in frame {frame_id}')
+
+    def _serve(self, path, occupancy, how: str) -> None:
+        """Make occupancy the served map: publish it (latched) and log it, how appended."""
+        self.map_msg = occupancy_grid(occupancy, self.frame_id, self.get_clock().now().to_msg())
         self.map_pub.publish(self.map_msg)
         self.get_logger().info(
             f'Serving map {path} ({occupancy.width} x {occupancy.height} cells at '
-            f'{occupancy.resolution_m:g} m) on {self.map_pub.topic_name} in frame {frame_id}')
+            f'{occupancy.resolution_m:g} m){how}')
 
     def on_get_map(self, _request, response):
         """Return the map (nav_msgs/GetMap)."""
@@ -80,12 +84,7 @@ class MapServer(Node):
                                if isinstance(error, MapImageError)
                                else LoadMap.Response.RESULT_INVALID_MAP_METADATA)
             return response
-        self.map_msg = occupancy_grid(occupancy, self.frame_id,
-                                      self.get_clock().now().to_msg())
-        self.map_pub.publish(self.map_msg)
-        self.get_logger().info(
-            f'Serving map {path} ({occupancy.width} x {occupancy.height} cells at '
-            f'{occupancy.resolution_m:g} m), loaded on request')
+        self._serve(path, occupancy, ', loaded on request')
         response.map = self.map_msg
         response.result = LoadMap.Response.RESULT_SUCCESS
         return response
