@@ -183,6 +183,11 @@ def test_the_real_launch_starts_the_whole_system(launch_file, real_launch_env, r
     errors = []
     threading.Thread(target=lambda: errors.extend(process.stderr), daemon=True).start()
     output = LaunchOutput(process)
+
+    def report() -> str:
+        """Return the driver's event lines and the end of the launch's output, as of now."""
+        return '\n'.join(output.lines) + '\n' + ''.join(errors[-80:])
+
     try:
         def started():
             names = sorted(re.sub(r'-\d+$', '', name) for name, _ in output.events('START'))
@@ -193,14 +198,13 @@ def test_the_real_launch_starts_the_whole_system(launch_file, real_launch_env, r
                 output.events('EXIT')) or process.poll() is not None
 
         output.wait(all_up, START_TIMEOUT_S)
-        report = '\n'.join(output.lines) + '\n' + ''.join(errors[-80:])
-        assert process.poll() is None, f'the launch ended by itself:\n{report}'
-        assert output.events('EXIT') == [], f'a process died:\n{report}'
-        assert started(), f'expected {executables}:\n{report}'
+        assert process.poll() is None, f'the launch ended by itself:\n{report()}'
+        assert output.events('EXIT') == [], f'a process died:\n{report()}'
+        assert started(), f'expected {executables}:\n{report()}'
         assert named <= graph_names(test_node), (
-            f'not in the graph: {sorted(named - graph_names(test_node))}\n{report}')
+            f'not in the graph: {sorted(named - graph_names(test_node))}\n{report()}')
         output.wait(lambda: bool(output.events('EXIT')), STAY_UP_S)
-        assert output.events('EXIT') == [], f'a process died:\n{report}'
+        assert output.events('EXIT') == [], f'a process died:\n{report()}'
     finally:
         if process.poll() is None:
             process.send_signal(signal.SIGINT)
@@ -209,7 +213,6 @@ def test_the_real_launch_starts_the_whole_system(launch_file, real_launch_env, r
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
-    report = '\n'.join(output.lines) + '\n' + ''.join(errors[-80:])
-    assert process.returncode == 0, report
-    assert 'Traceback' not in ''.join(errors), report
+    assert process.returncode == 0, report()
+    assert 'Traceback' not in ''.join(errors), report()
     assert marked_env.leftovers() == []

@@ -97,21 +97,22 @@ Progress = Callable[[str], None]
 #: Set by SIGINT (Ctrl-C) or SIGTERM (:func:`interrupt`): the running scenario stops
 #: cleanly, the others are skipped.
 INTERRUPTED = threading.Event()
-#: What interrupted the run: the first signal (its number, its name for the summary).
-_INTERRUPTION = {'signum': signal.SIGINT, 'by': 'Ctrl-C'}
+#: The first signal that interrupted the run (its number).
+_INTERRUPTION = {'signum': signal.SIGINT}
 SIGNAL_NAMES = {signal.SIGINT: 'Ctrl-C', signal.SIGTERM: 'SIGTERM'}
 
 
 def interrupt(signum: int = signal.SIGINT, _frame=None) -> None:
     """Stop the run cleanly (a handler of SIGINT and SIGTERM): set INTERRUPTED."""
     if not INTERRUPTED.is_set():
-        _INTERRUPTION.update(signum=signum, by=SIGNAL_NAMES.get(signum, f'signal {signum}'))
+        _INTERRUPTION['signum'] = signum
     INTERRUPTED.set()
 
 
 def interrupted_by() -> str:
     """Return what interrupted the run: 'Ctrl-C' or 'SIGTERM'."""
-    return _INTERRUPTION['by']
+    signum = _INTERRUPTION['signum']
+    return SIGNAL_NAMES.get(signum, f'signal {signum}')
 
 
 @contextmanager

@@ -598,15 +598,18 @@ class NavigatorNode(Node):
             self._leg_ended(outcome, name)
             return
         source = 'goal_pose goal' if isinstance(outcome.goal_id, tuple) else 'goal'
-        text = f'{source} ended: {name}: {outcome.message}'
-        if outcome.code == nav.NONE:
-            self.get_logger().info(text)
-        else:
-            self.get_logger().warning(text)
+        self._log_end(f'{source} ended: {name}: {outcome.message}', outcome.code)
         handle = self.goal_handles.pop(outcome.goal_id, None)
         if handle is not None:
             self.results[outcome.goal_id] = outcome
             handle.execute()
+
+    def _log_end(self, text: str, code: int) -> None:
+        """Log a goal's (or a leg's) end: info when it succeeded, else a warning."""
+        if code == nav.NONE:
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
 
     # --- routes: NavigateThroughPoses, FollowWaypoints -----------------------------
 
@@ -647,11 +650,8 @@ class NavigatorNode(Node):
         """Take the end of a route's leg: queue the next pose, or end the route."""
         key, index = outcome.goal_id[1], outcome.goal_id[2]
         handle, route = self.routes[key]
-        text = f'route pose {index + 1}/{route.count} ended: {name}: {outcome.message}'
-        if outcome.code == nav.NONE:
-            self.get_logger().info(text)
-        else:
-            self.get_logger().warning(text)
+        self._log_end(f'route pose {index + 1}/{route.count} ended: {name}: '
+                      f'{outcome.message}', outcome.code)
         if outcome.code in (nav.CANCELED, nav.PREEMPTED):
             route.abort(outcome.code, outcome.message)
         elif route.leg_ended(outcome.code, outcome.message) is not None:
