@@ -15,7 +15,7 @@ import xml.etree.ElementTree as ElementTree
 
 from mecanum_bringup.scenario import (
     distance_travelled_m, GoalStep, localization_errors, RunRecord, Scenario, track_array,
-    Verdict)
+    Verdict, WaypointsStep)
 from mecanum_navigation.safety.zone import Zone
 import numpy as np
 
@@ -166,12 +166,14 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
     """
     Return a JSON-ready summary of one run (plain types; None where undefined).
 
-    Goals reached counts goal steps whose outcome is 'reached'; distance_m is the
+    Goals reached counts goal and waypoints steps whose outcome is 'reached' (a
+    waypoints step counts once, all its waypoints reached); distance_m is the
     length of the true path; localisation errors are |estimate - truth| in x, y (see
     scenario.localization_errors). extra adds top-level keys (e.g. wall_time_s); a key
     that is already there raises ValueError.
     """
-    goal_indices = [i for i, step in enumerate(scenario.steps) if isinstance(step, GoalStep)]
+    goal_indices = [i for i, step in enumerate(scenario.steps)
+                    if isinstance(step, (GoalStep, WaypointsStep))]
     reached = sum(1 for i in goal_indices if i < len(record.step_results)
                   and record.step_results[i].outcome == 'reached')
     errors = localization_errors(record.truth, record.estimate)[:, 1]

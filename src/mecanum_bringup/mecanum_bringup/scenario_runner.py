@@ -19,8 +19,8 @@ chain in one process, localisation and navigation in another, as Nav2's
 use_composition), which costs far less CPU on simulated time; ``--no-compose`` runs
 each node in its own process.
 
-The runner drives the steps (NavigateToPose goals, text commands on
-``control_command``, raw twists on ``cmd_vel`` below the collision monitor, waits) and
+The runner drives the steps (Nav2's NavigateToPose and FollowWaypoints goals, text commands
+on ``control_command``, twists on a command source's topic of the command chain, waits) and
 records the simulator's ground truth (``ground_truth/odom``), amcl's estimate
 (``amcl_pose``), the collisions (``simulation/collisions``) and the plans (``plan``).
 Each scenario gets a folder ``DIR/NAME/``: ``summary.json``, ``run.png`` (map, plans,
@@ -68,7 +68,7 @@ from mecanum_bringup.isolation import (
 from mecanum_bringup.scenario import (
     CmdVelStep, CommandStep, error_label, find_scenarios, FreezeStep, GoalStep, judge,
     load_scenario, RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult,
-    WaitStep)
+    WaitStep, WaypointsStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
 from mecanum_navigation.safety.zone import zone_file_text
@@ -477,6 +477,8 @@ def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: R
 
         if isinstance(step, GoalStep):
             _goal(step, driver, result, poll)
+        elif isinstance(step, WaypointsStep):
+            _waypoints(step, driver, result, poll)
         elif isinstance(step, CommandStep):
             _command(step, driver, result, poll)
         elif isinstance(step, CmdVelStep):
@@ -494,28 +496,10 @@ def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: R
 
 def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
     start = driver.latest_truth()
-    handle = driver.send_goal(step.x, step.y, step.yaw, poll)
-    if handle is None or not handle.accepted:
-        result.outcome, result.error_code = 'refused', 9000
-        result.error_message = 'the goal was rejected'
+    answer = _action_result(driver.send_goal(step.x, step.y, step.yaw, poll), step.timeout_s,
+                            driver, result, poll)
+    if answer is None:
         return
-    # The result is asked for again every RESULT_REQUEST_S of wall time: like a goal, a
-    # get_result request can be lost in discovery (its answer goes to a reader the server
-    # has not matched yet). Seen under a CPU hog in lockstep at max: a goal refused at
-    # once never got its answer, and its 10 s of simulated time ran out.
-    futures = [handle.get_result_async()]
-    asked = time.monotonic()
-    deadline = result.start_s + step.timeout_s
-    while not any(future.done() for future in futures):
-        if poll() > deadline:
-            driver.cancel(handle, poll)
-            result.outcome = 'timeout'
-            return
-        if time.monotonic() - asked > RESULT_REQUEST_S:
-            futures.append(handle.get_result_async())
-            asked = time.monotonic()
-        driver.tick()
-    answer = next(future for future in futures if future.done()).result().result
     result.error_code, result.error_message = int(answer.error_code), answer.error_msg
     if result.error_code == 0:
         result.outcome = 'reached'
@@ -523,6 +507,52 @@ def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
     end = driver.latest_truth()
     moved = math.hypot(end[1] - start[1], end[2] - start[2])
     result.outcome = 'refused' if moved < REFUSED_MOTION_M else 'failed'
+
+
+def _waypoints(step: WaypointsStep, driver, result: StepResult, poll) -> None:
+    answer = _action_result(driver.send_waypoints(step.poses, poll), step.timeout_s,
+                            driver, result, poll)
+    if answer is None:
+        return
+    missed = list(answer.missed_waypoints)
+    if not missed and answer.error_code == 0:
+        result.outcome = 'reached'
+        return
+    result.outcome = 'failed'
+    result.error_code = int(missed[0].error_code) if missed else 9000
+    said = [f'waypoint {m.index + 1} missed: {error_label(int(m.error_code))}'
+            + (f' ({m.error_msg})' if m.error_msg else '') for m in missed]
+    if answer.error_code:
+        said.append(f'FollowWaypoints error {int(answer.error_code)}: {answer.error_msg}')
+    result.error_message = '; '.join(said)
+
+
+def _action_result(handle, timeout_s: float, driver, result: StepResult, poll):
+    """
+    Wait for an action goal's result (None: refused or timed out, recorded in result).
+
+    The result is asked for again every RESULT_REQUEST_S of wall time: like a goal, a
+    get_result request can be lost in discovery (its answer goes to a reader the server
+    has not matched yet). Seen under a CPU hog in lockstep at max: a goal refused at
+    once never got its answer, and its 10 s of simulated time ran out.
+    """
+    if handle is None or not handle.accepted:
+        result.outcome, result.error_code = 'refused', 9000
+        result.error_message = 'the goal was rejected'
+        return None
+    futures = [handle.get_result_async()]
+    asked = time.monotonic()
+    deadline = result.start_s + timeout_s
+    while not any(future.done() for future in futures):
+        if poll() > deadline:
+            driver.cancel(handle, poll)
+            result.outcome = 'timeout'
+            return None
+        if time.monotonic() - asked > RESULT_REQUEST_S:
+            futures.append(handle.get_result_async())
+            asked = time.monotonic()
+        driver.tick()
+    return next(future for future in futures if future.done()).result().result
 
 
 def _command(step: CommandStep, driver, result: StepResult, poll) -> None:
@@ -595,7 +625,7 @@ def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
         occupancy = load_map(find_map_file(scenario.map_name))
     except Exception:  # noqa: B902 - a plot without its map is still a plot
         occupancy = None
-    goals = [(g.x, g.y, g.yaw) for g in scenario.goals]
+    goals = scenario.goal_poses
     plot_run(path_png, occupancy, record.truth, record.estimate, plans, goals,
              collision_points, scenario.authorised_zone,
              title=f'{scenario.name}: {verdict}',
