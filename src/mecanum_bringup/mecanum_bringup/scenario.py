@@ -13,6 +13,8 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       spawn: {x: 2.95, y: 2.0, yaw: 0.0}          # optional: default the world's robot_start
       initial_pose: {x: 2.95, y: 2.0, yaw: 0.0}   # optional: told to localisation; default spawn
       floor_friction_coefficient: 0.0  # optional, >= 0 (0: the robot's own wheel friction)
+      sensor_noise_scale: 1.0          # optional, >= 0: times the simulator's lidar and IMU
+                                       # noise (0: noiseless sensors)
       real_time_factor: 1.0            # optional, > 0
       seed: 0                          # optional int >= 0
       authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
@@ -112,8 +114,8 @@ VERDICTS = ('pass', 'fail')
 STEP_KINDS = ('goal', 'waypoints', 'command', 'cmd_vel', 'wait', 'freeze')
 COMMAND_EXPECTATIONS = ('done', 'stopped', 'rejected', 'any')
 SCENARIO_KEYS = ('name', 'description', 'world', 'map', 'spawn', 'initial_pose',
-                 'floor_friction_coefficient', 'real_time_factor', 'seed', 'authorised_zone',
-                 'moving_obstacles', 'steps', 'criteria', 'expect')
+                 'floor_friction_coefficient', 'sensor_noise_scale', 'real_time_factor', 'seed',
+                 'authorised_zone', 'moving_obstacles', 'steps', 'criteria', 'expect')
 CRITERIA_KEYS = ('max_duration_s', 'no_collision', 'stay_in_zone', 'max_localization_error_m')
 _NAME = re.compile(r'[A-Za-z0-9_-]+')
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
@@ -277,6 +279,7 @@ class Scenario:
     steps: Tuple[Step, ...]
     description: str = ''
     floor_friction_coefficient: float = 0.0
+    sensor_noise_scale: float = 1.0
     real_time_factor: float = 1.0
     seed: int = 0
     authorised_zone: Optional[Zone] = None
@@ -597,6 +600,9 @@ class _Parser:
                                'floor_friction_coefficient')
         if friction < 0.0:
             self.fail('floor_friction_coefficient', f'must be >= 0, not {friction}')
+        noise_scale = self.number(raw.get('sensor_noise_scale', 1.0), 'sensor_noise_scale')
+        if noise_scale < 0.0:
+            self.fail('sensor_noise_scale', f'must be >= 0, not {noise_scale}')
         real_time_factor = self.positive(raw.get('real_time_factor', 1.0), 'real_time_factor')
         seed = raw.get('seed', 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -620,7 +626,8 @@ class _Parser:
         return Scenario(
             name=name, source=self.path, world_file=world_file, map_name=map_value,
             spawn=spawn, initial_pose=initial_pose, steps=steps, description=description,
-            floor_friction_coefficient=friction, real_time_factor=real_time_factor,
+            floor_friction_coefficient=friction, sensor_noise_scale=noise_scale,
+            real_time_factor=real_time_factor,
             seed=seed, authorised_zone=zone, moving_obstacles=moving, criteria=criteria,
             expect=expect, world=world)
 

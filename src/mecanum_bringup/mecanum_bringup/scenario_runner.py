@@ -176,7 +176,7 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
 
     The launch file includes mecanum_bringup robot.launch.yaml with the scenario's world
     (spawn, zone and moving obstacles built in), map, initial pose (known: 5 cm / 3 deg
-    spread), friction, seed and real-time factor, the navigator's parameters and the
+    spread), friction, sensor noise scale, seed and real-time factor, the navigator's parameters and the
     authorised zone as a zone file (zone.yaml: the one declaration that the planner, the
     zone guard and robot_controller load, and that the judge uses); plus the
     bag recorder with options.record, the Foxglove bridge with options.foxglove.
@@ -201,6 +201,7 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
             'real_time_factor': rtf, 'lockstep': str(options.lockstep).lower(),
             'seed': scenario.seed,
             'floor_friction_coefficient': scenario.floor_friction_coefficient,
+            'sensor_noise_scale': scenario.sensor_noise_scale,
             'nav_params_file': str(nav_params), 'zone_file': str(zone_file),
             'board_port': str(run_dir / 'ttySIM'),
             'estop_latch_file': str(run_dir / 'estop_latched')}
