@@ -65,6 +65,7 @@ import uuid
 
 from mecanum_bringup.isolation import (
     isolated_environment, lease_domain_id, processes_with_variable)
+from mecanum_bringup.launch_runner import die_with_parent
 from mecanum_bringup.scenario import (
     CmdVelStep, CommandStep, error_label, find_scenarios, FreezeStep, GoalStep, judge,
     load_scenario, RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult,
@@ -176,10 +177,10 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
 
     The launch file includes mecanum_bringup robot.launch.yaml with the scenario's world
     (spawn, zone and moving obstacles built in), map, initial pose (known: 5 cm / 3 deg
-    spread), friction, sensor noise scale, seed and real-time factor, the navigator's parameters and the
-    authorised zone as a zone file (zone.yaml: the one declaration that the planner, the
-    zone guard and robot_controller load, and that the judge uses); plus the
-    bag recorder with options.record, the Foxglove bridge with options.foxglove.
+    spread), friction, sensor noise scale, seed and real-time factor, the navigator's
+    parameters and the authorised zone as a zone file (zone.yaml: the one declaration
+    that the planner, the zone guard and robot_controller load, and that the judge uses);
+    plus the bag recorder with options.record, the Foxglove bridge with options.foxglove.
     Returns the launch file's path.
     """
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -238,7 +239,10 @@ class SystemProcess:
             [sys.executable, '-m', 'mecanum_bringup.launch_runner',
              *(['--compose'] if compose else []), str(launch_file)],
             env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+            stderr=subprocess.STDOUT, text=True, start_new_session=True,
+            # A runner killed outright (SIGKILL, a Ray worker or node lost) takes its
+            # system with it: the launch runner stops every node when it gets SIGTERM.
+            preexec_fn=die_with_parent)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 

@@ -87,8 +87,8 @@ def test_junit_xml_has_a_testcase_per_variant(rows):
     assert (root.get('tests'), root.get('failures'), root.get('errors')) == ('4', '2', '1')
     assert float(root.get('time')) == pytest.approx(93.5)
     cases = root.findall('testcase')
-    assert [c.get('name') for c in cases] == ['tour_0000', 'tour_0001', 'tour_0002',
-                                             'tour_0003']
+    assert [c.get('name') for c in cases] == [
+        'tour_0000', 'tour_0001', 'tour_0002', 'tour_0003']
     assert {c.get('classname') for c in cases} == {'tour_robustness'}
     assert cases[3].get('time') == '0.000'   # unknown wall time
     assert cases[0].find('failure') is None and cases[0].find('error') is None
