@@ -123,6 +123,7 @@ def _absolute_paths(scenario_doc: Dict[str, Any], folder: Path) -> None:
 def write_variant_files(folder: Path, scenario_doc: Dict[str, Any],
                         world_doc: Optional[Dict[str, Any]]):
     """Write a variant's scenario.yaml (and variant_world.yaml) into folder; load it."""
+    folder = folder.resolve()
     folder.mkdir(parents=True, exist_ok=True)
     scenario_doc = json.loads(json.dumps(scenario_doc))   # a copy, plain types
     if world_doc is not None:
@@ -424,7 +425,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SweepError as error:
         print(f'run_sweep: {error}', file=sys.stderr)
         return 2
-    out_dir = Path(args.out or Path('reports') / 'sweeps' / sweep.name)
+    out_dir = Path(args.out or Path('reports') / 'sweeps' / sweep.name).resolve()
     stream = open(os.devnull, 'w') if args.quiet else sys.stderr
     try:
         summary = run_sweep(sweep, out_dir, args.jobs, args.ray,

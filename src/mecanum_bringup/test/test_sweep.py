@@ -117,12 +117,14 @@ def test_a_variant_becomes_a_scenario_with_its_values(folder):
         variant_documents(sweep, variants(sweep)[0], missing)
 
 
-def test_prepared_variants_load_as_scenarios_and_a_bad_one_names_the_variant(folder):
+def test_prepared_variants_load_as_scenarios_and_a_bad_one_names_the_variant(
+        folder, monkeypatch):
     sweep = load_sweep(sweep_file(folder, """\
         person: [{speed_m_s: 0.4}]
         sensor_noise_scale: [0.0, 3.0]
         """))
-    prepared = prepare(sweep, folder / 'check')
+    monkeypatch.chdir(folder)   # an output folder given relative to the working directory
+    prepared = prepare(sweep, Path('check'))
     assert [p.name for p in prepared] == ['s_0000', 's_0001']
     scenario = load_scenario(folder / 'check' / 's_0001' / 'scenario.yaml')
     assert scenario.sensor_noise_scale == 3.0
