@@ -37,6 +37,7 @@ import math
 import multiprocessing
 import os
 from pathlib import Path
+import shutil
 import signal
 import socket
 import sys
@@ -146,6 +147,7 @@ def run_variant(index: int, name: str, values: Dict[str, Any], scenario_doc: Dic
     max), record, lockstep.
     """
     runs = Path(out_dir) / 'runs'
+    shutil.rmtree(runs / name, ignore_errors=True)   # what an interrupted attempt left
     scenario = write_variant_files(runs / name, scenario_doc, world_doc)
     result = run_scenario(scenario, RunOptions(
         runs, real_time_factor=options.get('real_time_factor', 0.0),
