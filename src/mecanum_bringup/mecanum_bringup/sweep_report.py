@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import List, Optional, Sequence, Tuple, Union
 import xml.etree.ElementTree as ElementTree
 
-from mecanum_bringup.scenario_report import _one_line, _xml_text
+from mecanum_bringup.scenario_report import one_line, xml_text
 from mecanum_bringup.sweep_stats import (
     axis_rates, Change, criterion_rates, failed_criteria, Rate, value_label, worst_variants)
 from mecanum_bringup.sweep_store import VariantRow
@@ -133,7 +133,7 @@ def plot_axis_rates(rows: Sequence[VariantRow], axes: Sequence[str],
         for x, (_, rate) in zip(xs, rates):
             plot.annotate(f'{rate.failures}/{rate.n}', (x, rate.rate),
                           textcoords='offset points', xytext=(6, 4), fontsize=7)
-        labels = [_one_line(label, 24) for label, _ in rates]
+        labels = [one_line(label, 24) for label, _ in rates]
         long_labels = len(rates) > 4 or max(len(label) for label in labels) > 10
         plot.set_xticks(xs)
         plot.set_xticklabels(labels, rotation=30 if long_labels else 0,
@@ -163,33 +163,33 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
         return value if value is not None and math.isfinite(value) else 0.0
 
     suite = ElementTree.Element('testsuite', {
-        'name': _xml_text(sweep_name), 'tests': str(len(rows)),
+        'name': xml_text(sweep_name), 'tests': str(len(rows)),
         'failures': str(sum(row.status == 'UNEXPECTED' for row in rows)),
         'errors': str(sum(row.status == 'ERROR' for row in rows)), 'skipped': '0',
         'time': f'{sum(seconds(row.wall_time_s) for row in rows):.3f}'})
     for row in rows:
         case = ElementTree.SubElement(suite, 'testcase', {
-            'name': _xml_text(row.name), 'classname': _xml_text(sweep_name),
+            'name': xml_text(row.name), 'classname': xml_text(sweep_name),
             'time': f'{seconds(row.wall_time_s):.3f}'})
         properties = ElementTree.SubElement(case, 'properties')
         for key, value in [('index', row.index), ('status', row.status)] + list(
                 row.values.items()):
             ElementTree.SubElement(properties, 'property', {
-                'name': _xml_text(key), 'value': _xml_text(value_label(value))})
+                'name': xml_text(key), 'value': xml_text(value_label(value))})
         if row.status == 'ERROR':
             error = ElementTree.SubElement(case, 'error', {
-                'message': _xml_text(_one_line(row.error, 500)), 'type': 'ScenarioError'})
-            error.text = _xml_text(row.error)
+                'message': xml_text(one_line(row.error, 500)), 'type': 'ScenarioError'})
+            error.text = xml_text(row.error)
         elif row.status != 'OK':
             failure = ElementTree.SubElement(case, 'failure', {
-                'message': _xml_text(_one_line(row.first_failure, 500)),
+                'message': xml_text(one_line(row.first_failure, 500)),
                 'type': 'UnexpectedVerdict'})
-            failure.text = _xml_text(
+            failure.text = xml_text(
                 f'expected {row.expected}, got {row.verdict or "no verdict"}: '
                 f'{row.first_failure}')
         failed = failed_criteria(row)
         system_out = ElementTree.SubElement(case, 'system-out')
-        system_out.text = _xml_text(
+        system_out.text = xml_text(
             f'{_values_text(row)}\nstatus {row.status}, verdict {row.verdict or "-"} '
             f'(expected {row.expected})\nfailed criteria: {", ".join(failed) or "none"}\n'
             f'run folder: {row.run_dir or "-"}')
@@ -296,7 +296,7 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
                 esc(row.name), f'<span class="bad">{esc(row.status)}</span>',
                 '<br>'.join(esc(line) for line in _values_text(row).splitlines()) or '-',
                 esc(', '.join(failed_criteria(row))) or '-',
-                esc(_one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-'))
+                esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-'))
         parts.append(_html_table(('variant', 'status', 'values', 'failed criteria',
                                   'first failure / error', 'run'), worst_rows))
     parts.append('</body></html>')
