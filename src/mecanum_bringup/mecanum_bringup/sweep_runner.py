@@ -305,7 +305,10 @@ def run_on_ray(address: str, todo: Sequence[PreparedVariant], out_dir: Path,
     resources = ray.cluster_resources()
     say(f'Ray cluster at {address}: {len(ray.nodes())} node(s), '
         f'{resources.get("CPU", 0):g} CPUs')
-    task = ray.remote(num_cpus=1, max_retries=retries)(run_variant)
+    # By reference to the installed module (also when this file runs as __main__, whose
+    # functions Ray would pickle by value, with their globals).
+    from mecanum_bringup import sweep_runner
+    task = ray.remote(num_cpus=1, max_retries=retries)(sweep_runner.run_variant)
     refs = {task.remote(*_arguments(item, out_dir, options)): item for item in todo}
     problems: List[str] = []
     pending = list(refs)
