@@ -249,7 +249,7 @@ fi
 # --- make test --------------------------------------------------------------------------
 if [ "$FAILED" = 0 ] && [ "$TESTS" = 1 ]; then
     read -r -a test_args <<< "${DOCKER_CHECK_TEST_ARGS:-}"
-    say "running the tests (docker run $IMAGE make test ${test_args[*]}) ..."
+    say "running the tests (docker run $IMAGE make test${test_args[*]:+ ${test_args[*]}}) ..."
     start=$(date +%s)
     "$DOCKER" run --rm "${RUN_NET[@]}" "$IMAGE" make test "${test_args[@]}" \
         > "$OUT/test.log" 2>&1
