@@ -328,11 +328,27 @@ def fake_docker(tmp_path: Path, answers: str) -> Path:
     return docker
 
 
-def run_docker_check(docker, *args) -> subprocess.CompletedProcess:
-    """Run tools/docker_check.sh with DOCKER=docker; return the finished process."""
-    env = {key: value for key, value in os.environ.items() if not key.startswith('DOCKER')}
-    return subprocess.run([str(DOCKER_CHECK), *args], env=dict(env, DOCKER=str(docker)),
+def run_docker_check(docker, *args, **env) -> subprocess.CompletedProcess:
+    """Run tools/docker_check.sh with DOCKER=docker (and env); return the finished process."""
+    clean = {key: value for key, value in os.environ.items() if not key.startswith('DOCKER')}
+    return subprocess.run([str(DOCKER_CHECK), *args],
+                          env=dict(clean, DOCKER=str(docker), **env),
                           capture_output=True, text=True, timeout=60)
+
+
+# A docker whose engine answers, with the base image here, that builds, and whose
+# containers print what the demo and pytest print: DEMO_LINE, DEMO_STATUS, TESTS_LINE.
+ENGINE = """info) exit 0 ;;
+image) exit 0 ;;
+build) echo "Successfully built"; exit 0 ;;
+run) case "$*" in
+     *--entrypoint*) exit 0 ;;
+     *'make test'*) echo "$TESTS_LINE"; exit 0 ;;
+     *) echo "$DEMO_LINE"; exit "$DEMO_STATUS" ;;
+     esac ;;"""
+GIT_WORK_TREE = pytest.mark.skipif(
+    not (REPO / '.git').exists() or shutil.which('git') is None,
+    reason='not a git work tree (the check builds from the committed HEAD)')
 
 
 def test_make_docker_check_runs_the_check_script_without_setup():
@@ -392,8 +408,7 @@ def test_docker_check_usage_error(tmp_path):
     assert not (tmp_path / 'docker_calls').exists()
 
 
-@pytest.mark.skipif(not (REPO / '.git').exists() or shutil.which('git') is None,
-                    reason='not a git work tree (the check builds from the committed HEAD)')
+@GIT_WORK_TREE
 def test_docker_check_without_base_image_prints_the_recipe_and_builds_nothing(tmp_path):
     """Base image neither here nor pullable: the stand-in recipe for it, exit 78, no build."""
     docker = fake_docker(tmp_path, '\n'.join([
@@ -420,3 +435,45 @@ def test_readme_docker_section_has_the_check():
     assert 'make docker-check' in commands, commands
     assert 'DOCKER_CHECK_TESTS=1 make docker-check' in commands, commands
     assert 'DOCKER_CHECK_TESTS' in DOCKER_CHECK.read_text()
+
+
+@GIT_WORK_TREE
+def test_docker_check_passes_with_its_table(tmp_path):
+    """Build, demo and tests pass: a table with the demo's verdict and the test counts, exit 0."""
+    docker = fake_docker(tmp_path, ENGINE)
+    checked = run_docker_check(
+        docker, '--tests', DOCKER_CHECK_OUT=str(tmp_path / 'out'),
+        DEMO_LINE='demo: PASS: 12 of 12 goals reached, 0 collisions, 47.33 m in 252.66 s',
+        DEMO_STATUS='0', TESTS_LINE='===== 2441 passed, 21 skipped in 835.19s (0:13:55) =====')
+    assert checked.returncode == 0, checked
+    rows = {line.split()[0]: line for line in checked.stdout.splitlines()
+            if line.split()[:1] in (['build'], ['demo'], ['tests'])}
+    assert rows['build'].split()[1] == 'ok'
+    assert 'PASS: 12 of 12 goals reached, 0 collisions' in rows['demo']
+    assert '2441 passed, 21 skipped' in rows['tests']
+    assert 'PASSED' in checked.stdout
+    calls = (tmp_path / 'docker_calls').read_text().splitlines()
+    build = next(call.split() for call in calls if call.startswith('build'))
+    assert build[:3] == ['build', '--network=host', '-t'] and build[3] == 'mecanum_robot:check'
+    clone = Path(build[4])
+    assert not clone.exists(), 'the clean clone is left behind'
+    demo, tests = [call for call in calls if call.startswith('run') and 'chmod' not in call]
+    assert '-v' in demo.split() and f'{tmp_path}/out/reports:/work/reports' in demo
+    assert '--network=bridge' in demo and tests.endswith('mecanum_robot:check make test')
+    assert (tmp_path / 'out' / 'demo.log').read_text().startswith('demo: PASS')
+
+
+@GIT_WORK_TREE
+def test_docker_check_fails_on_a_failed_demo_and_skips_the_tests(tmp_path):
+    """A failing demo: its verdict and log tail, no test run, exit 1."""
+    docker = fake_docker(tmp_path, ENGINE)
+    checked = run_docker_check(
+        docker, DOCKER_CHECK_OUT=str(tmp_path / 'out'), DOCKER_CHECK_TESTS='1',
+        DEMO_LINE='demo: FAIL: 11 of 12 goals reached, 0 collisions, 50.08 m in 356.22 s',
+        DEMO_STATUS='2', TESTS_LINE='===== 1 passed in 1.00s =====')
+    assert checked.returncode == 1, checked
+    demo_row = next(line for line in checked.stdout.splitlines() if line.startswith('demo '))
+    assert 'FAILED (exit 2) FAIL: 11 of 12 goals reached, 0 collisions' in demo_row
+    assert not any('make test' in call
+                   for call in (tmp_path / 'docker_calls').read_text().splitlines())
+    assert 'FAILED: logs in' in checked.stdout

@@ -18,6 +18,8 @@
 #   DOCKER_CHECK_TESTS=1        as --tests
 #   DOCKER_CHECK_TEST_ARGS      words after `make test`, e.g. 'PYTEST_ARGS=tests/test_docker.py'
 #   DOCKER_CHECK_IMAGE          the image's tag (default mecanum_robot:check)
+#   DOCKER_CHECK_OUT            the folder of the logs and the demo's report
+#                               (default reports/docker_check_<time>)
 #   DOCKER_CHECK_BUILD_NETWORK  network of `docker build` (default host: the build reaches the
 #                               package indexes through the host's network settings, as on
 #                               machines whose DNS or proxy Docker's bridge does not get;
@@ -185,7 +187,7 @@ BASE_NOTE=${BASE_PYTHON:+"Python $BASE_PYTHON"}
 BASE_NOTE=${BASE_NOTE:-"no PYTHON_VERSION: a Debian stand-in, not the official image"}
 
 # --- a clean clone of HEAD --------------------------------------------------------------
-OUT="$REPO/reports/docker_check_$(date +%Y%m%d_%H%M%S)"
+OUT=${DOCKER_CHECK_OUT:-"$REPO/reports/docker_check_$(date +%Y%m%d_%H%M%S)"}
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/docker_check.XXXXXX") || exit "$EXIT_FAILED"
 trap 'rm -rf "$WORK"' EXIT
 mkdir -p "$OUT/reports" || exit "$EXIT_FAILED"
