@@ -209,7 +209,11 @@ show_tail() {  # the end of a failed step's log
 
 ROWS=()
 FAILED=0
-row() { ROWS+=("$(printf '%-6s %-62s %6s s' "$1" "$2" "$3")"); }
+row() {  # step, result, seconds (or -)
+    local time=$3
+    [[ $time =~ ^[0-9]+$ ]] && time="$time s"
+    ROWS+=("$(printf '%-6s %-62s %8s' "$1" "$2" "$time")")
+}
 
 # --- build ------------------------------------------------------------------------------
 say "building (docker build ${BUILD_NET[*]} -t $IMAGE .) ..."
