@@ -1,7 +1,7 @@
 """
 Integration: one 10-variant sweep gives the same per-variant verdicts run one at a time
-(killed half-way and resumed), two at a time, and on a 2-node Ray cluster that loses a
-node mid-sweep.
+(killed half-way and resumed), two at a time, and on a 2-node Ray cluster (stopped with
+Ctrl-C, then resumed while it loses a node).
 
 The sweep (a grid: 2 seeds x 5 goal subsets) runs a scenario of quick refusals, in
 lockstep with the whole simulated robot per variant: goals in a wall and on the dining
@@ -176,12 +176,24 @@ def test_the_same_verdicts_one_at_a_time_resumed_two_at_a_time_and_on_ray(
     cluster, doomed = start_ray_cluster(ray_cluster)
     try:
         on_ray = tmp_path / 'ray'
+        # Ctrl-C on the Ray path: the running variants' workers are stopped, their
+        # simulated robots with them, and no row is written for them.
         process = run_sweep(sweep, on_ray, env, '--ray', cluster.address)
-        wait_for_rows(on_ray, 2, process, timeout_s=600)
+        wait_for_rows(on_ray, 1, process, timeout_s=600)
+        process.send_signal(signal.SIGINT)
+        output = process.communicate(timeout=120)[0]
+        assert process.returncode == 1, output
+        before = store_rows(on_ray)
+        assert 1 <= len(before) < 10, before
+        # Resumed; the second node dies while it runs a variant.
+        process = run_sweep(sweep, on_ray, env, '--ray', cluster.address)
+        wait_for_rows(on_ray, len(before) + 2, process, timeout_s=600)
         cluster.remove_node(doomed, allow_graceful=False)
         output = process.communicate(timeout=900)[0]
         assert process.returncode == 0, output
         assert statuses(on_ray) == EXPECTED
+        rows = store_rows(on_ray)
+        assert {i: rows[i] for i in before} == before, 'a finished variant was run again'
         workers = {row[2] for row in store_rows(on_ray).values()}
         print(output, json.dumps(sorted(workers), indent=1))
         assert len({worker.split(' ray node ')[-1] for worker in workers}) == 2, workers
