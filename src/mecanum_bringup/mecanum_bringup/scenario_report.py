@@ -145,12 +145,12 @@ def junit_xml(results: Sequence[ScenarioResult]) -> str:
             first = result.first_failure or 'every criterion passed'
             failure = ElementTree.SubElement(case, 'failure', {
                 'message': xml_text(f'expected {verdict.expected}, got {verdict.verdict}: '
-                                     f'{one_line(first, 500)}'),
+                                    f'{one_line(first, 500)}'),
                 'type': 'UnexpectedVerdict'})
             failure.text = xml_text(details)
         system_out = ElementTree.SubElement(case, 'system-out')
         system_out.text = xml_text(f'verdict {verdict.verdict} (expected {verdict.expected})'
-                                    f'\n{details}')
+                                   f'\n{details}')
     ElementTree.indent(suite)
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
             + ElementTree.tostring(suite, encoding='unicode') + '\n')
