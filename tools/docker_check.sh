@@ -157,11 +157,13 @@ make_base() {
     say "making a stand-in for $BASE from Debian bookworm packages (mmdebstrap, about a minute)"
     if mmdebstrap --quiet --variant=minbase \
             --include=python3,python3-venv,python3-dev,python3-pip,ca-certificates \
-            bookworm "$dir/base.tar" \
-        && "$DOCKER" import "$dir/base.tar" debian-py:raw > /dev/null \
-        && "$DOCKER" build --quiet "${BUILD_NET[@]}" -t "$BASE" "$dir/ctx" > /dev/null
+            bookworm "$dir/base.tar" > "$dir/log" 2>&1 \
+        && "$DOCKER" import "$dir/base.tar" debian-py:raw >> "$dir/log" 2>&1 \
+        && "$DOCKER" build --quiet "${BUILD_NET[@]}" -t "$BASE" "$dir/ctx" >> "$dir/log" 2>&1
     then
         status=0
+    else
+        tail -n 20 "$dir/log" | sed 's/^/  | /'
     fi
     rm -rf "$dir"
     return "$status"
