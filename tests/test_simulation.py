@@ -30,6 +30,11 @@ pytestmark = pytest.mark.integration
 WALL_AHEAD_M = 3.0 - load_robot_config(default_config_path()).lidar_mount_x_m
 
 
+#: The nodes a text command passes through on its way to the board.
+COMMAND_PATH = ('robot_controller', 'twist_mux', 'collision_monitor', 'zone_guard',
+                'motor_controller', 'velocity_controller', 'hardware_interface')
+
+
 @pytest.fixture
 def simulation(start_system, test_node, tmp_path):
     """Start the apartment simulation; return (system, test_node)."""
@@ -40,6 +45,12 @@ def simulation(start_system, test_node, tmp_path):
     system.wait_for_line(r'\[hardware_interface\].*Connected to the board')
     system.wait_for_line(r'\[velocity_controller\].*control active')
     system.wait_for_line(r'\[robot_controller\].*ready')
+    # Every node of the command path in lockstep before a test drives: one that has not
+    # taken part yet lets simulated time run on without its output, so a timed command
+    # could lose seconds of motion on a busy machine.
+    system.wait_for_line(r'\[simulator\].*lockstep: the board .* answers')
+    for node in COMMAND_PATH:
+        system.wait_for_line(rf'\[simulator\].*lockstep: {node}( \(\+\d+ nodes\))? takes part')
     return system, test_node
 
 
