@@ -33,9 +33,14 @@ def run(hardware):
     from mecanum_control.board_core import BoardCore
     core = BoardCore(hardware, board_params.PARAMS)
     hardware.write(b'\x00')   # leading delimiter after boot (protocol doc, 1)
-    while True:
-        core.poll()
-        hardware.idle(core.idle_us())
+    try:
+        while True:
+            core.poll()
+            hardware.idle(core.idle_us())
+    finally:
+        # A bug that ends the loop leaves the motors off (and the unfed watchdog resets
+        # the board within WATCHDOG_MS).
+        hardware.set_duties((0, 0, 0, 0))
 
 
 def main():

@@ -184,3 +184,94 @@ def test_one_loop_iteration_is_short_under_micropython(micropython):
         'times.sort()\n'
         'print(times[100])')
     assert 0.0 < float(out) < 5.0, f'median poll {out} ms'
+
+
+@pytest.fixture(scope='module')
+def micropython_with_fake_machine():
+    """Yield a MicroPython session whose machine module is fake_machine.py (no board here)."""
+    from micropython_session import MicroPython, portable_firmware_files, unavailable
+    reason = unavailable()
+    if reason:
+        pytest.skip(f'MicroPython unavailable: {reason}')
+    from pathlib import Path
+    here = Path(__file__).resolve().parent
+    with MicroPython() as session:
+        files = portable_firmware_files()
+        files['/lib/hardware_esp32.py'] = (here.parent / 'hardware_esp32.py').read_text()
+        files['/lib/machine.py'] = (here / 'fake_machine.py').read_text()
+        files['/lib/board_params_for_test.py'] = f'PARAMS = {robot_params()!r}\n'
+        session.write_files(files)
+        session.run(
+            'import board_config, machine\n'
+            'class Config:\n'
+            '    pass\n'
+            'config = Config()\n'
+            'for name in dir(board_config):\n'
+            '    if name.isupper():\n'
+            '        setattr(config, name, getattr(board_config, name))\n'
+            "config.SERIAL = 'uart'\n"
+            'import hardware_esp32\n'
+            'hw = hardware_esp32.Esp32Hardware(config)\n'
+            "boot = [(machine.PWMS[m['pwm']].level, machine.PINS[m['in1']].level,\n"
+            "         machine.PINS[m['in2']].level) for m in config.MOTORS]\n"
+            'encoders_before_start = len(machine.ENCODERS)\n'
+            'hw.start()\n')
+        yield session
+
+
+def test_hardware_layer_stops_the_motors_first_and_maps_duties_to_pins(
+        micropython_with_fake_machine):
+    """Under MicroPython: motors braked at construction; duties become board_config's pins."""
+    session = micropython_with_fake_machine
+    # Constructed (before start(): no encoders yet), every motor brakes: IN1 = IN2 = 1.
+    assert session.run('print(boot, encoders_before_start)') == \
+        '[(65535, 1, 1), (65535, 1, 1), (65535, 1, 1), (65535, 1, 1)] 0'
+    session.run('hw.set_duties((5000, 5000, -10000, 0))')
+    out = session.run(
+        'for m in config.MOTORS:\n'
+        "    print(machine.PWMS[m['pwm']].level, machine.PINS[m['in1']].level, "
+        "machine.PINS[m['in2']].level)")
+    # FL forward; FR inverted as wired; RL full backward; RR zero: brake (both high).
+    assert out.splitlines() == ['32767 1 0', '32767 0 1', '65535 0 1', '65535 1 1']
+
+
+def test_hardware_layer_reads_encoders_imu_and_serial(micropython_with_fake_machine):
+    """Encoders in 4x with inverts, the MPU-6050 at rest, the UART both ways, the watchdog."""
+    session = micropython_with_fake_machine
+    out = session.run(
+        'for unit in range(4):\n'
+        '    machine.ENCODERS[unit].count = 100 + unit\n'
+        'print(hw.read_counts(), [machine.ENCODERS[u].phases for u in range(4)])\n'
+        'print(hw.read_imu())\n'
+        "hw._uart.received = b'abc'\n"
+        'print(hw.read(), hw.read())\n'
+        'hw.idle(5000)\n'
+        'print(hw._watchdog.feeds, hw.estop_active(), hw.driver_fault(), hw.battery_mv())')
+    counts, imu, serial, rest = out.splitlines()
+    assert counts == '[100, -101, 102, -103] [4, 4, 4, 4]'
+    assert json.loads(imu.replace('(', '[').replace(')', ']')) == pytest.approx(
+        [0.0, 0.0, 9.80665, 0.0, 0.0, 0.0], abs=1e-9)
+    assert serial == "b'abc' b''"
+    assert rest == '1 False False 0'
+
+
+def test_firmware_core_on_the_esp32_hardware_layer(micropython_with_fake_machine):
+    """board_core on hardware_esp32 (fake pins) answers a host frame over the UART."""
+    session = micropython_with_fake_machine
+    command = proto.encode_frame(proto.MotorEfforts((0.25, 0.0, 0.0, -0.25), 150), 5)
+    out = session.run(
+        'import board_params_for_test\n'
+        'from mecanum_control.board_core import BoardCore\n'
+        'core = BoardCore(hw, board_params_for_test.PARAMS)\n'
+        f"hw._uart.received = bytes.fromhex('{command.hex()}')\n"
+        'hw._uart.sent = b""\n'
+        'core.poll()\n'
+        'print(hw._uart.sent.hex())\n'
+        "print(machine.PWMS[config.MOTORS[0]['pwm']].level)")
+    sent, fl_level = out.splitlines()
+    frames = proto.FrameDecoder().feed(bytes.fromhex(sent))
+    kinds = sorted(type(frame.message).__name__ for frame in frames)
+    assert kinds == ['BoardStatus', 'EncoderTicks', 'ImuSample']
+    status = [f.message for f in frames if isinstance(f.message, proto.BoardStatus)][0]
+    assert status.last_command_seq == 5 and status.faults == proto.FaultFlags(0)
+    assert fl_level == '16383'
