@@ -139,6 +139,8 @@ class BoardCore:
             self._update_levels()
             if report:
                 self._queue(wire.BOARD_STATUS, self._status_fields(now))
+            else:
+                self._board_time(now)   # keep the clock within ticks_diff's range
         self.enforce(now)
         if self._out:
             out, self._out = self._out, []
