@@ -6,7 +6,7 @@ PYTEST_ARGS ?=
 # of conftest.py; tests marked `alone` still run by themselves).
 TEST_WORKERS ?= auto
 
-.PHONY: setup demo scenarios test lint colcon-test bench clean firmware-flash
+.PHONY: setup demo scenarios test lint colcon-test bench docker-check clean firmware-flash
 
 setup:
 	@$(PYTHON) tools/bootstrap.py
@@ -42,6 +42,14 @@ firmware-flash: setup
 # Speed benchmarks (not tests: shared machines are noisy); each prints a table.
 bench: setup
 	@for script in bench/*.py; do ./mecanum exec python $$script || exit 1; done
+
+# The Docker image of the committed HEAD, from a clean clone: docker build, then `make demo`
+# in it (and `make test` with DOCKER_CHECK_TESTS=1), a table of the results; the script exits
+# 77 where no Docker engine answers (make reports "Error 77"). DOCKER_CHECK_ARGS: e.g.
+# --make-base. No setup: it needs git and docker only.
+DOCKER_CHECK_ARGS ?=
+docker-check:
+	@tools/docker_check.sh $(DOCKER_CHECK_ARGS)
 
 clean:
 	rm -rf build install log .venv

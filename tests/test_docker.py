@@ -1,14 +1,20 @@
 """The Docker image sets the workspace up as the README says and runs its demo by default.
 
 No Docker engine is needed (nor ROS): these tests read the Dockerfile, .dockerignore,
-requirements.txt, the Makefile and the README, and fail when they drift apart.
+requirements.txt, the Makefile and the README, and fail when they drift apart; and they run
+tools/docker_check.sh (`make docker-check`) against stand-ins for docker where there is
+none, or it fails to start, or the base image is missing.
+`make docker-check` itself builds and runs the image where a Docker engine answers.
 """
 
 import ast
 import json
+import os
 from pathlib import Path
 import re
 import shlex
+import shutil
+import subprocess
 
 from pip._internal.network.session import PipSession
 from pip._internal.req.req_file import parse_requirements
@@ -16,6 +22,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 DOCKERFILE = REPO / 'Dockerfile'
+DOCKER_CHECK = REPO / 'tools' / 'docker_check.sh'
+EXIT_NO_DOCKER, EXIT_NO_BASE = 77, 78  # the check script's skips
 README = (REPO / 'README.md').read_text()
 # Packages an image based on the official python image has without installing them: its
 # Python comes with venv and its C headers, which Debian splits into these two.
@@ -308,3 +316,164 @@ def test_dockerignore_keeps_every_source_file():
 def test_dockerignore_matcher_follows_docker_rules(path, patterns, expected):
     """The matcher these tests use reads patterns as Docker does."""
     assert dockerignore_excludes(path, patterns) == expected
+
+
+def fake_docker(tmp_path: Path, answers: str) -> Path:
+    """Write a stand-in for the docker command: a shell case over its first argument."""
+    calls = tmp_path / 'docker_calls'
+    docker = tmp_path / 'docker'
+    docker.write_text(f'#!/bin/sh\necho "$*" >> {shlex.quote(str(calls))}\n'
+                      f'case "$1" in\n{answers}\n*) echo "unexpected: $*" >&2; exit 99 ;;\nesac\n')
+    docker.chmod(0o755)
+    return docker
+
+
+def run_docker_check(docker, *args, **env) -> subprocess.CompletedProcess:
+    """Run tools/docker_check.sh with DOCKER=docker (and env); return the finished process."""
+    clean = {key: value for key, value in os.environ.items() if not key.startswith('DOCKER')}
+    return subprocess.run([str(DOCKER_CHECK), *args],
+                          env=dict(clean, DOCKER=str(docker), **env),
+                          capture_output=True, text=True, timeout=60)
+
+
+# A docker whose engine answers, with the base image here, that builds, and whose
+# containers print what the demo and pytest print: DEMO_LINE, DEMO_STATUS, TESTS_LINE.
+ENGINE = """info) exit 0 ;;
+image) exit 0 ;;
+build) echo "Successfully built"; exit 0 ;;
+run) case "$*" in
+     *--entrypoint*) exit 0 ;;
+     *'make test'*) echo "$TESTS_LINE"; exit 0 ;;
+     *) echo "$DEMO_LINE"; exit "$DEMO_STATUS" ;;
+     esac ;;"""
+GIT_WORK_TREE = pytest.mark.skipif(
+    not (REPO / '.git').exists() or shutil.which('git') is None,
+    reason='not a git work tree (the check builds from the committed HEAD)')
+
+
+def test_make_docker_check_runs_the_check_script_without_setup():
+    """`make docker-check` is a phony target that runs the script alone, with its arguments."""
+    makefile = (REPO / 'Makefile').read_text()
+    phony = re.search(r'^\.PHONY:(.*)$', makefile, re.M)
+    assert phony and 'docker-check' in phony.group(1).split()
+    env = {key: value for key, value in os.environ.items()
+           if key not in ('MAKEFLAGS', 'MAKELEVEL', 'MFLAGS')}  # when run by `make test`
+    dry_run = subprocess.run(['make', '-n', '--no-print-directory', 'docker-check',
+                              'DOCKER_CHECK_ARGS=--make-base'], cwd=REPO, env=env,
+                             capture_output=True, text=True, timeout=60)
+    assert dry_run.returncode == 0, dry_run.stderr
+    # Only the script: no `make setup` first (it needs git and docker, not the workspace).
+    assert dry_run.stdout.splitlines() == ['tools/docker_check.sh --make-base'], dry_run.stdout
+
+
+def test_docker_check_script_is_executable_and_parses():
+    """The script runs as a command and bash reads it without a syntax error."""
+    assert os.access(DOCKER_CHECK, os.X_OK)
+    assert DOCKER_CHECK.read_text().startswith('#!/usr/bin/env bash\n')
+    parsed = subprocess.run(['bash', '-n', str(DOCKER_CHECK)], capture_output=True, text=True)
+    assert parsed.returncode == 0, parsed.stderr
+
+
+@pytest.mark.skipif(shutil.which('shellcheck') is None, reason='shellcheck is not installed')
+def test_docker_check_script_passes_shellcheck():
+    """No shellcheck warnings (quoting, word splitting, unset variables)."""
+    checked = subprocess.run(['shellcheck', str(DOCKER_CHECK)], capture_output=True, text=True)
+    assert checked.returncode == 0, checked.stdout
+
+
+def test_docker_check_skips_without_a_docker_command(tmp_path):
+    """No docker command: a clear 'SKIPPED' and exit 77, not a failure."""
+    checked = run_docker_check(tmp_path / 'no_such_docker')
+    assert checked.returncode == EXIT_NO_DOCKER, checked
+    assert 'SKIPPED' in checked.stdout and 'no_such_docker' in checked.stdout
+
+
+def test_docker_check_skips_when_no_engine_answers(tmp_path):
+    """A docker command whose engine does not answer: its error, 'SKIPPED' and exit 77."""
+    docker = fake_docker(
+        tmp_path, 'info) echo "Cannot connect to the Docker daemon" >&2; exit 1 ;;')
+    checked = run_docker_check(docker)
+    assert checked.returncode == EXIT_NO_DOCKER, checked
+    assert 'SKIPPED: no Docker engine answers' in checked.stdout
+    assert 'Cannot connect to the Docker daemon' in checked.stdout
+    assert (tmp_path / 'docker_calls').read_text().split() == ['info']
+
+
+def test_docker_check_usage_error(tmp_path):
+    """An unknown argument is a usage error (exit 2), before docker is asked anything."""
+    docker = fake_docker(tmp_path, '')
+    checked = run_docker_check(docker, '--no-such-option')
+    assert checked.returncode == 2, checked
+    assert 'usage:' in checked.stderr
+    assert not (tmp_path / 'docker_calls').exists()
+
+
+@GIT_WORK_TREE
+def test_docker_check_without_base_image_prints_the_recipe_and_builds_nothing(tmp_path):
+    """Base image neither here nor pullable: the stand-in recipe for it, exit 78, no build."""
+    docker = fake_docker(tmp_path, '\n'.join([
+        'info) exit 0 ;;',
+        'image) exit 1 ;;',  # image inspect: no such image
+        'pull) echo "dial tcp: lookup registry-1.docker.io: no such host" >&2; exit 1 ;;']))
+    checked = run_docker_check(docker)
+    assert checked.returncode == EXIT_NO_BASE, checked
+    committed = subprocess.run(['git', '-C', str(REPO), 'show', 'HEAD:Dockerfile'],
+                               capture_output=True, text=True, check=True).stdout
+    base = next(arguments for name, arguments in parse_dockerfile(committed) if name == 'FROM')
+    assert f'SKIPPED: no base image {base}' in checked.stdout
+    assert 'mmdebstrap --variant=minbase' in checked.stdout
+    assert f'docker build --network host -t {base} /tmp/ctx' in checked.stdout
+    assert '--make-base' in checked.stdout
+    calls = [line.split()[0] for line in (tmp_path / 'docker_calls').read_text().splitlines()]
+    assert calls == ['info', 'image', 'pull'], calls
+
+
+def test_readme_docker_section_has_the_check():
+    """The README's Docker section gives the check's commands, with and without the tests."""
+    section = readme_section('Docker')
+    commands = [line.split('  #', 1)[0].strip() for line in section.splitlines()]
+    assert 'make docker-check' in commands, commands
+    assert 'DOCKER_CHECK_TESTS=1 make docker-check' in commands, commands
+    assert 'DOCKER_CHECK_TESTS' in DOCKER_CHECK.read_text()
+
+
+@GIT_WORK_TREE
+def test_docker_check_passes_with_its_table(tmp_path):
+    """Build, demo and tests pass: a table with the demo's verdict and the test counts, exit 0."""
+    docker = fake_docker(tmp_path, ENGINE)
+    checked = run_docker_check(
+        docker, '--tests', DOCKER_CHECK_OUT=str(tmp_path / 'out'),
+        DEMO_LINE='demo: PASS: 12 of 12 goals reached, 0 collisions, 47.33 m in 252.66 s',
+        DEMO_STATUS='0', TESTS_LINE='===== 2441 passed, 21 skipped in 835.19s (0:13:55) =====')
+    assert checked.returncode == 0, checked
+    rows = {line.split()[0]: line for line in checked.stdout.splitlines()
+            if line.split()[:1] in (['build'], ['demo'], ['tests'])}
+    assert rows['build'].split()[1] == 'ok'
+    assert 'PASS: 12 of 12 goals reached, 0 collisions' in rows['demo']
+    assert '2441 passed, 21 skipped' in rows['tests']
+    assert 'PASSED' in checked.stdout
+    calls = (tmp_path / 'docker_calls').read_text().splitlines()
+    build = next(call.split() for call in calls if call.startswith('build'))
+    assert build[:3] == ['build', '--network=host', '-t'] and build[3] == 'mecanum_robot:check'
+    clone = Path(build[4])
+    assert not clone.exists(), 'the clean clone is left behind'
+    demo, tests = [call for call in calls if call.startswith('run') and 'chmod' not in call]
+    assert '-v' in demo.split() and f'{tmp_path}/out/reports:/work/reports' in demo
+    assert '--network=bridge' in demo and tests.endswith('mecanum_robot:check make test')
+    assert (tmp_path / 'out' / 'demo.log').read_text().startswith('demo: PASS')
+
+
+@GIT_WORK_TREE
+def test_docker_check_fails_on_a_failed_demo_and_skips_the_tests(tmp_path):
+    """A failing demo: its verdict and log tail, no test run, exit 1."""
+    docker = fake_docker(tmp_path, ENGINE)
+    checked = run_docker_check(
+        docker, DOCKER_CHECK_OUT=str(tmp_path / 'out'), DOCKER_CHECK_TESTS='1',
+        DEMO_LINE='demo: FAIL: 11 of 12 goals reached, 0 collisions, 50.08 m in 356.22 s',
+        DEMO_STATUS='2', TESTS_LINE='===== 1 passed in 1.00s =====')
+    assert checked.returncode == 1, checked
+    demo_row = next(line for line in checked.stdout.splitlines() if line.startswith('demo '))
+    assert 'FAILED (exit 2) FAIL: 11 of 12 goals reached, 0 collisions' in demo_row
+    assert not any('make test' in call
+                   for call in (tmp_path / 'docker_calls').read_text().splitlines())
+    assert 'FAILED: logs in' in checked.stdout

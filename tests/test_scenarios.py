@@ -85,6 +85,10 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path, marked_env):
     wall = summary(tmp_path, 'goal_in_wall_refused')
     assert wall['verdict'] == 'pass'
     assert all(step['outcome'] == 'refused' for step in wall['steps'])
+    # Nav2's FollowWaypoints (nav2_msgs types only) takes the robot through 3 waypoints.
+    waypoints = summary(tmp_path, 'nav2_waypoints')
+    assert [(step['kind'], step['outcome']) for step in waypoints['steps']] == [
+        ('waypoints', 'reached')]
     commands = summary(tmp_path, 'text_commands')
     assert [step['outcome'] for step in commands['steps']] == ['done'] * 7
     check_the_command_chain_scenarios(tmp_path)

@@ -66,6 +66,22 @@ def test_lidar_sees_the_wall_at_its_known_distance(simulation):
     assert ('base_link', 'laser') in mounts
 
 
+def test_sensor_noise_scale_zero_gives_noiseless_scans(start_system, test_node, tmp_path):
+    """sensor_noise_scale (scenario sweeps vary it) reaches the simulator's lidar."""
+    start_system('robot_simulation', 'simulation.launch.yaml', 'world:=apartment',
+                 'sensor_noise_scale:=0.0', f'board_port:={tmp_path / "ttySIM"}',
+                 f'estop_latch_file:={tmp_path / "estop"}')
+    scans = test_node.record(LaserScan, 'scan')
+    first = scans.wait_for(lambda m: len(m.ranges) == 360)
+    second = scans.wait_for(lambda m: len(m.ranges) == 360 and m is not first)
+    ahead = round((0.0 - first.angle_min) / first.angle_increment)
+    # The robot stands still: without noise two scans are the same to the float32 bit,
+    # but for the beams on the walking person (with 1 cm noise, almost none would be).
+    assert first.ranges[ahead] == pytest.approx(WALL_AHEAD_M, abs=1e-5)
+    same = sum(a == b for a, b in zip(first.ranges, second.ranges))
+    assert same >= 340, f'{same} of 360 beams the same in two scans'
+
+
 def stamp_s(message) -> float:
     """A message's header stamp in seconds."""
     return message.header.stamp.sec + message.header.stamp.nanosec * 1e-9

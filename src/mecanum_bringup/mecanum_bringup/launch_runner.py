@@ -53,8 +53,13 @@ def find_executable(package: str, executable: str, environ: Mapping[str, str]) -
         'is the workspace built (make setup) and its environment sourced?')
 
 
-def _die_with_parent() -> None:
-    """In the child, before exec: get SIGTERM if the runner dies, however it dies."""
+def die_with_parent() -> None:
+    """
+    In a child, before exec: get SIGTERM if the parent dies, however it dies.
+
+    (PR_SET_PDEATHSIG: strictly, when the thread that started the child ends; start
+    children from a thread that lives as long as they should.)
+    """
     _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
@@ -113,7 +118,7 @@ class Supervisor:
     def _start(self, node: ManagedNode) -> None:
         node.process = subprocess.Popen(
             node.command, env=node.env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent)
+            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=die_with_parent)
         node.starts += 1
         node.restart_at = None
         verb = 'started' if node.starts == 1 else 'restarted'

@@ -13,6 +13,8 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       spawn: {x: 2.95, y: 2.0, yaw: 0.0}          # optional: default the world's robot_start
       initial_pose: {x: 2.95, y: 2.0, yaw: 0.0}   # optional: told to localisation; default spawn
       floor_friction_coefficient: 0.0  # optional, >= 0 (0: the robot's own wheel friction)
+      sensor_noise_scale: 1.0          # optional, >= 0: times the simulator's lidar and IMU
+                                       # noise (0: noiseless sensors)
       real_time_factor: 1.0            # optional, > 0
       seed: 0                          # optional int >= 0
       authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
@@ -23,6 +25,9 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       steps:                           # required, at least one, run in order
       - goal: {x: 5.1, y: 6.2, yaw: 0.0, timeout_s: 90}    # NavigateToPose; expect reached
       - goal: {x: 12.0, y: 3.0, expect: refused, error: GOAL_OUTSIDE_ZONE}
+      - waypoints:                     # Nav2's FollowWaypoints: every pose must be reached
+          poses: [{x: 3.5, y: 1.5}, {x: 5.1, y: 6.2, yaw: 1.57}]
+          timeout_s: 150               # optional: default 120 s per pose
       - command: 'forward 1.5 m'       # a robot_controller text command
         timeout_s: 20                  # optional: default the motion's duration + 10 s
         expect: done                   # optional: done (default) | stopped (the command
@@ -106,11 +111,11 @@ COMMAND_TIMEOUT_MARGIN_S = 10.0
 
 GOAL_EXPECTATIONS = ('reached', 'refused', 'any')
 VERDICTS = ('pass', 'fail')
-STEP_KINDS = ('goal', 'command', 'cmd_vel', 'wait', 'freeze')
+STEP_KINDS = ('goal', 'waypoints', 'command', 'cmd_vel', 'wait', 'freeze')
 COMMAND_EXPECTATIONS = ('done', 'stopped', 'rejected', 'any')
 SCENARIO_KEYS = ('name', 'description', 'world', 'map', 'spawn', 'initial_pose',
-                 'floor_friction_coefficient', 'real_time_factor', 'seed', 'authorised_zone',
-                 'moving_obstacles', 'steps', 'criteria', 'expect')
+                 'floor_friction_coefficient', 'sensor_noise_scale', 'real_time_factor', 'seed',
+                 'authorised_zone', 'moving_obstacles', 'steps', 'criteria', 'expect')
 CRITERIA_KEYS = ('max_duration_s', 'no_collision', 'stay_in_zone', 'max_localization_error_m')
 _NAME = re.compile(r'[A-Za-z0-9_-]+')
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
@@ -141,6 +146,25 @@ class GoalStep:
     def describe(self) -> str:
         """Return e.g. 'goal (5.10, 6.20)'."""
         return f'goal ({self.x:.2f}, {self.y:.2f})'
+
+
+@dataclass(frozen=True)
+class WaypointsStep:
+    """
+    Follow poses (x, y, yaw) in the map frame (m, rad) with Nav2's FollowWaypoints.
+
+    The step is 'reached' when the action ends with no missed waypoint within timeout_s
+    (simulated s); otherwise 'failed', its message naming each missed waypoint.
+    """
+
+    poses: Tuple[Pose, ...]
+    timeout_s: float
+
+    kind = 'waypoints'
+
+    def describe(self) -> str:
+        """Return e.g. 'waypoints (3.50, 1.50) -> (5.10, 6.20)'."""
+        return 'waypoints ' + ' -> '.join(f'({x:.2f}, {y:.2f})' for x, y, _ in self.poses)
 
 
 @dataclass(frozen=True)
@@ -220,7 +244,7 @@ class WaitStep:
         return f'wait {self.duration_s:.1f} s'
 
 
-Step = Union[GoalStep, CommandStep, CmdVelStep, WaitStep, FreezeStep]
+Step = Union[GoalStep, WaypointsStep, CommandStep, CmdVelStep, WaitStep, FreezeStep]
 
 
 @dataclass(frozen=True)
@@ -255,6 +279,7 @@ class Scenario:
     steps: Tuple[Step, ...]
     description: str = ''
     floor_friction_coefficient: float = 0.0
+    sensor_noise_scale: float = 1.0
     real_time_factor: float = 1.0
     seed: int = 0
     authorised_zone: Optional[Zone] = None
@@ -268,6 +293,17 @@ class Scenario:
         """Return the goal steps, in order."""
         return [step for step in self.steps if isinstance(step, GoalStep)]
 
+    @property
+    def goal_poses(self) -> List[Pose]:
+        """Return every pose the robot is sent to (goals and waypoints), in order."""
+        poses: List[Pose] = []
+        for step in self.steps:
+            if isinstance(step, GoalStep):
+                poses.append((step.x, step.y, step.yaw))
+            elif isinstance(step, WaypointsStep):
+                poses.extend(step.poses)
+        return poses
+
 
 @dataclass
 class StepResult:
@@ -276,10 +312,12 @@ class StepResult:
 
     outcome: goal 'reached' | 'refused' (rejected, or ended with an error code before
     moving) | 'failed' (ended with an error code) | 'timeout' (timeout_s elapsed, goal
-    canceled); command 'done' | 'stopped' (the command chain held it: robot_controller
-    ended it short) | 'rejected' | 'interrupted' | 'timeout'; cmd_vel, wait and freeze
-    'done'; any step 'aborted' when the run stopped during it. error_code is the
-    NavigateToPose result code (0 otherwise).
+    canceled); waypoints 'reached' | 'failed' (a waypoint missed: error_code is the
+    first missed one's, error_message names each) | 'refused' | 'timeout'; command
+    'done' | 'stopped' (the command chain held it: robot_controller ended it short) |
+    'rejected' | 'interrupted' | 'timeout'; cmd_vel, wait and freeze 'done'; any step
+    'aborted' when the run stopped during it. error_code is the NavigateToPose result
+    code (0 otherwise).
     """
 
     kind: str
@@ -562,6 +600,9 @@ class _Parser:
                                'floor_friction_coefficient')
         if friction < 0.0:
             self.fail('floor_friction_coefficient', f'must be >= 0, not {friction}')
+        noise_scale = self.number(raw.get('sensor_noise_scale', 1.0), 'sensor_noise_scale')
+        if noise_scale < 0.0:
+            self.fail('sensor_noise_scale', f'must be >= 0, not {noise_scale}')
         real_time_factor = self.positive(raw.get('real_time_factor', 1.0), 'real_time_factor')
         seed = raw.get('seed', 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -585,7 +626,8 @@ class _Parser:
         return Scenario(
             name=name, source=self.path, world_file=world_file, map_name=map_value,
             spawn=spawn, initial_pose=initial_pose, steps=steps, description=description,
-            floor_friction_coefficient=friction, real_time_factor=real_time_factor,
+            floor_friction_coefficient=friction, sensor_noise_scale=noise_scale,
+            real_time_factor=real_time_factor,
             seed=seed, authorised_zone=zone, moving_obstacles=moving, criteria=criteria,
             expect=expect, world=world)
 
@@ -667,6 +709,8 @@ class _Parser:
         where = f'{key}.{kind}'
         if kind == 'goal':
             return self.goal(raw['goal'], where)
+        if kind == 'waypoints':
+            return self.waypoints(raw['waypoints'], where)
         if kind == 'command':
             return self.command(raw, key)
         if kind == 'cmd_vel':
@@ -696,6 +740,18 @@ class _Parser:
             timeout_s=self.positive(raw.get('timeout_s', DEFAULT_GOAL_TIMEOUT_S),
                                     f'{key}.timeout_s'),
             expect=expect, error=error)
+
+    def waypoints(self, value: Any, key: str) -> WaypointsStep:
+        """Return a waypoints step: a non-empty list of poses, timeout 120 s per pose."""
+        raw = self.mapping(value, key, ('poses',), ('timeout_s',))
+        poses = raw['poses']
+        if not isinstance(poses, list) or not poses:
+            self.fail(f'{key}.poses', f'must be a non-empty list of poses {{x, y, yaw}}, '
+                      f'not {poses!r}')
+        parsed = tuple(self.pose(pose, f'{key}.poses[{index}]')
+                       for index, pose in enumerate(poses))
+        timeout = raw.get('timeout_s', DEFAULT_GOAL_TIMEOUT_S * len(parsed))
+        return WaypointsStep(parsed, self.positive(timeout, f'{key}.timeout_s'))
 
     def command(self, raw: Dict[str, Any], key: str) -> CommandStep:
         """Return a command step; the text must parse with robot_controller's grammar."""
@@ -868,7 +924,8 @@ def _judge_step(number: int, step: Step, result: Optional[StepResult],
     took = f' in {result.duration_s:.1f} s' if math.isfinite(result.duration_s) else ''
     if isinstance(step, GoalStep):
         return _judge_goal(name, head, step, result, took)
-    expected = step.expect if isinstance(step, CommandStep) else 'done'
+    expected = (step.expect if isinstance(step, CommandStep)
+                else 'reached' if isinstance(step, WaypointsStep) else 'done')
     passed = expected == 'any' or outcome == expected
     detail = f'{head}: {outcome}{took}'
     if result.error_message:

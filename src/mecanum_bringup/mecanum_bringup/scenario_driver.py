@@ -3,10 +3,11 @@ The scenario runner's ROS side: one rclpy node in the scenario's own domain.
 
 It listens to the simulator's ground truth (``ground_truth/odom``, map frame), amcl's
 estimate (``amcl_pose``), the collision count (``simulation/collisions``), the global plans
-(``plan``) and robot_controller's ``control_status``; it sends NavigateToPose goals on
-``navigate_to_pose``, text commands on ``control_command`` and body twists (base_link,
-m/s and rad/s) on a command source's topic of the command chain (``cmd_vel_scenario``
-by default, ``cmd_vel_teleop``, ...: mecanum_navigation config/twist_mux.yaml), so they
+(``plan``) and robot_controller's ``control_status``; it sends Nav2's NavigateToPose goals
+on ``navigate_to_pose`` and FollowWaypoints goals on ``follow_waypoints``, text commands
+on ``control_command`` and body twists (base_link, m/s and rad/s) on a command source's
+topic of the command chain (``cmd_vel_scenario`` by default, ``cmd_vel_teleop``, ...:
+mecanum_navigation config/twist_mux.yaml), so they
 go through the mux, the collision monitor and the zone guard like any other. It also
 records every stop of the chain (``collision_monitor_state``, ``zone_guard_state``) and
 every refusal or early stop of robot_controller, where the robot then was. Its clock is
@@ -26,13 +27,13 @@ import functools
 import math
 import threading
 import time
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from mecanum_bringup.scenario import command_sources
 from mecanum_control.node_main import make_executor
-from nav2_msgs.action import NavigateToPose
+from nav2_msgs.action import FollowWaypoints, NavigateToPose
 from nav_msgs.msg import Odometry, Path
 import numpy as np
 import rclpy
@@ -59,6 +60,16 @@ Poll = Callable[[], float]
 
 def _yaw(q) -> float:
     return 2.0 * math.atan2(q.z, q.w)
+
+
+def map_pose(x: float, y: float, yaw: float) -> PoseStamped:
+    """Return a PoseStamped in the map frame (m, rad)."""
+    pose = PoseStamped()
+    pose.header.frame_id = 'map'
+    pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+    pose.pose.orientation.z = math.sin(yaw / 2.0)
+    pose.pose.orientation.w = math.cos(yaw / 2.0)
+    return pose
 
 
 def _stamp_s(stamp) -> float:
@@ -101,6 +112,7 @@ class ScenarioDriver:
                             for topic in command_sources().values()}
         self.command_pub = node.create_publisher(String, 'control_command', 10)
         self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
+        self.follow_waypoints = ActionClient(node, FollowWaypoints, 'follow_waypoints')
         # Lockstep: the /clock the spin thread holds (arrived), the time the main thread
         # is at (held) and the last one it let go (released); nanoseconds.
         self._time = threading.Condition()
@@ -311,24 +323,30 @@ class ScenarioDriver:
         return self.navigate.wait_for_server(timeout_sec=timeout_s)
 
     def send_goal(self, x: float, y: float, yaw: float, poll: Poll):
+        """Send a NavigateToPose goal (map frame) and return its handle (None: no answer)."""
+        goal = NavigateToPose.Goal()
+        goal.pose = map_pose(x, y, yaw)
+        return self._send(self.navigate, goal, poll)
+
+    def send_waypoints(self, poses: Sequence[Tuple[float, float, float]], poll: Poll):
+        """Send a FollowWaypoints goal (map frame poses) and return its handle (None: none)."""
+        goal = FollowWaypoints.Goal()
+        goal.poses = [map_pose(x, y, yaw) for x, y, yaw in poses]
+        return self._send(self.follow_waypoints, goal, poll)
+
+    def _send(self, client: ActionClient, goal, poll: Poll):
         """
-        Send a NavigateToPose goal (map frame) and return its handle (None: no answer).
+        Send a goal and return its handle (None: no answer within ANSWER_TIMEOUT_S).
 
         A goal sent before the server matched this client's response reader is lost
         (DDS discovery is asynchronous): it is sent again after GOAL_RESEND_S; a resent
         goal preempts the lost one, if that one arrived.
         """
-        goal = NavigateToPose.Goal()
-        goal.pose = PoseStamped()
-        goal.pose.header.frame_id = 'map'
-        goal.pose.pose.position.x, goal.pose.pose.position.y = float(x), float(y)
-        goal.pose.pose.orientation.z = math.sin(yaw / 2.0)
-        goal.pose.pose.orientation.w = math.cos(yaw / 2.0)
         with self._lock:
             self._want_plan = True
         deadline = time.monotonic() + ANSWER_TIMEOUT_S
         while time.monotonic() < deadline:
-            future = self.navigate.send_goal_async(goal)
+            future = client.send_goal_async(goal)
             attempt_end = min(deadline, time.monotonic() + GOAL_RESEND_S)
             while not future.done() and time.monotonic() < attempt_end:
                 poll()

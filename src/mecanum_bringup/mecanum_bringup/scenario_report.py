@@ -15,7 +15,7 @@ import xml.etree.ElementTree as ElementTree
 
 from mecanum_bringup.scenario import (
     distance_travelled_m, GoalStep, localization_errors, RunRecord, Scenario, track_array,
-    Verdict)
+    Verdict, WaypointsStep)
 from mecanum_navigation.safety.zone import Zone
 import numpy as np
 
@@ -71,7 +71,7 @@ def _seconds(value: Optional[float]) -> str:
     return f'{value:.1f} s'
 
 
-def _one_line(text: str, limit: int) -> str:
+def one_line(text: str, limit: int) -> str:
     """Return text on one line, control characters replaced, cut to limit characters."""
     text = ''.join(c if c.isprintable() else ' ' for c in ' '.join(str(text).split()))
     return text if len(text) <= limit else text[:limit - 3] + '...'
@@ -86,7 +86,7 @@ def results_table(results: Sequence[ScenarioResult]) -> str:
         rows.append((result.name, result.expected,
                      result.verdict.verdict if result.verdict else '-', result.status,
                      _seconds(result.sim_time_s), _seconds(result.wall_time_s),
-                     _one_line(result.first_failure, MAX_DETAIL_CHARS) or '-'))
+                     one_line(result.first_failure, MAX_DETAIL_CHARS) or '-'))
     widths = [max(len(row[column]) for row in rows) for column in range(len(header))]
     right = {4, 5}  # times are right-aligned
 
@@ -105,7 +105,7 @@ def results_table(results: Sequence[ScenarioResult]) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def _xml_text(text: Any) -> str:
+def xml_text(text: Any) -> str:
     """Return text without the characters XML 1.0 cannot hold (replaced by U+FFFD)."""
     return _XML_INVALID.sub('\ufffd', str(text))
 
@@ -132,24 +132,24 @@ def junit_xml(results: Sequence[ScenarioResult]) -> str:
     for result in results:
         wall = result.wall_time_s
         case = ElementTree.SubElement(suite, 'testcase', {
-            'name': _xml_text(result.name), 'classname': 'scenarios',
+            'name': xml_text(result.name), 'classname': 'scenarios',
             'time': f'{wall:.3f}' if wall is not None and math.isfinite(wall) else '0.000'})
         if result.verdict is None:
             error = ElementTree.SubElement(case, 'error', {
-                'message': _xml_text(_one_line(result.error, 500)), 'type': 'ScenarioError'})
-            error.text = _xml_text(result.error)
+                'message': xml_text(one_line(result.error, 500)), 'type': 'ScenarioError'})
+            error.text = xml_text(result.error)
             continue
         verdict = result.verdict
         details = _criteria_lines(verdict)
         if not verdict.as_expected:
             first = result.first_failure or 'every criterion passed'
             failure = ElementTree.SubElement(case, 'failure', {
-                'message': _xml_text(f'expected {verdict.expected}, got {verdict.verdict}: '
-                                     f'{_one_line(first, 500)}'),
+                'message': xml_text(f'expected {verdict.expected}, got {verdict.verdict}: '
+                                     f'{one_line(first, 500)}'),
                 'type': 'UnexpectedVerdict'})
-            failure.text = _xml_text(details)
+            failure.text = xml_text(details)
         system_out = ElementTree.SubElement(case, 'system-out')
-        system_out.text = _xml_text(f'verdict {verdict.verdict} (expected {verdict.expected})'
+        system_out.text = xml_text(f'verdict {verdict.verdict} (expected {verdict.expected})'
                                     f'\n{details}')
     ElementTree.indent(suite)
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
@@ -166,12 +166,14 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
     """
     Return a JSON-ready summary of one run (plain types; None where undefined).
 
-    Goals reached counts goal steps whose outcome is 'reached'; distance_m is the
+    Goals reached counts goal and waypoints steps whose outcome is 'reached' (a
+    waypoints step counts once, all its waypoints reached); distance_m is the
     length of the true path; localisation errors are |estimate - truth| in x, y (see
     scenario.localization_errors). extra adds top-level keys (e.g. wall_time_s); a key
     that is already there raises ValueError.
     """
-    goal_indices = [i for i, step in enumerate(scenario.steps) if isinstance(step, GoalStep)]
+    goal_indices = [i for i, step in enumerate(scenario.steps)
+                    if isinstance(step, (GoalStep, WaypointsStep))]
     reached = sum(1 for i in goal_indices if i < len(record.step_results)
                   and record.step_results[i].outcome == 'reached')
     errors = localization_errors(record.truth, record.estimate)[:, 1]

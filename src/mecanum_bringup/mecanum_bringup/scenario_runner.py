@@ -19,8 +19,8 @@ chain in one process, localisation and navigation in another, as Nav2's
 use_composition), which costs far less CPU on simulated time; ``--no-compose`` runs
 each node in its own process.
 
-The runner drives the steps (NavigateToPose goals, text commands on
-``control_command``, raw twists on ``cmd_vel`` below the collision monitor, waits) and
+The runner drives the steps (Nav2's NavigateToPose and FollowWaypoints goals, text commands
+on ``control_command``, twists on a command source's topic of the command chain, waits) and
 records the simulator's ground truth (``ground_truth/odom``), amcl's estimate
 (``amcl_pose``), the collisions (``simulation/collisions``) and the plans (``plan``).
 Each scenario gets a folder ``DIR/NAME/``: ``summary.json``, ``run.png`` (map, plans,
@@ -65,10 +65,11 @@ import uuid
 
 from mecanum_bringup.isolation import (
     isolated_environment, lease_domain_id, processes_with_variable)
+from mecanum_bringup.launch_runner import die_with_parent
 from mecanum_bringup.scenario import (
     CmdVelStep, CommandStep, error_label, find_scenarios, FreezeStep, GoalStep, judge,
     load_scenario, RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult,
-    WaitStep)
+    WaitStep, WaypointsStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
 from mecanum_navigation.safety.zone import zone_file_text
@@ -176,10 +177,10 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
 
     The launch file includes mecanum_bringup robot.launch.yaml with the scenario's world
     (spawn, zone and moving obstacles built in), map, initial pose (known: 5 cm / 3 deg
-    spread), friction, seed and real-time factor, the navigator's parameters and the
-    authorised zone as a zone file (zone.yaml: the one declaration that the planner, the
-    zone guard and robot_controller load, and that the judge uses); plus the
-    bag recorder with options.record, the Foxglove bridge with options.foxglove.
+    spread), friction, sensor noise scale, seed and real-time factor, the navigator's
+    parameters and the authorised zone as a zone file (zone.yaml: the one declaration
+    that the planner, the zone guard and robot_controller load, and that the judge uses);
+    plus the bag recorder with options.record, the Foxglove bridge with options.foxglove.
     Returns the launch file's path.
     """
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -201,6 +202,7 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
             'real_time_factor': rtf, 'lockstep': str(options.lockstep).lower(),
             'seed': scenario.seed,
             'floor_friction_coefficient': scenario.floor_friction_coefficient,
+            'sensor_noise_scale': scenario.sensor_noise_scale,
             'nav_params_file': str(nav_params), 'zone_file': str(zone_file),
             'board_port': str(run_dir / 'ttySIM'),
             'estop_latch_file': str(run_dir / 'estop_latched')}
@@ -237,7 +239,10 @@ class SystemProcess:
             [sys.executable, '-m', 'mecanum_bringup.launch_runner',
              *(['--compose'] if compose else []), str(launch_file)],
             env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+            stderr=subprocess.STDOUT, text=True, start_new_session=True,
+            # A runner killed outright (SIGKILL, a Ray worker or node lost) takes its
+            # system with it: the launch runner stops every node when it gets SIGTERM.
+            preexec_fn=die_with_parent)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
@@ -477,6 +482,8 @@ def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: R
 
         if isinstance(step, GoalStep):
             _goal(step, driver, result, poll)
+        elif isinstance(step, WaypointsStep):
+            _waypoints(step, driver, result, poll)
         elif isinstance(step, CommandStep):
             _command(step, driver, result, poll)
         elif isinstance(step, CmdVelStep):
@@ -494,28 +501,10 @@ def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: R
 
 def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
     start = driver.latest_truth()
-    handle = driver.send_goal(step.x, step.y, step.yaw, poll)
-    if handle is None or not handle.accepted:
-        result.outcome, result.error_code = 'refused', 9000
-        result.error_message = 'the goal was rejected'
+    answer = _action_result(driver.send_goal(step.x, step.y, step.yaw, poll), step.timeout_s,
+                            driver, result, poll)
+    if answer is None:
         return
-    # The result is asked for again every RESULT_REQUEST_S of wall time: like a goal, a
-    # get_result request can be lost in discovery (its answer goes to a reader the server
-    # has not matched yet). Seen under a CPU hog in lockstep at max: a goal refused at
-    # once never got its answer, and its 10 s of simulated time ran out.
-    futures = [handle.get_result_async()]
-    asked = time.monotonic()
-    deadline = result.start_s + step.timeout_s
-    while not any(future.done() for future in futures):
-        if poll() > deadline:
-            driver.cancel(handle, poll)
-            result.outcome = 'timeout'
-            return
-        if time.monotonic() - asked > RESULT_REQUEST_S:
-            futures.append(handle.get_result_async())
-            asked = time.monotonic()
-        driver.tick()
-    answer = next(future for future in futures if future.done()).result().result
     result.error_code, result.error_message = int(answer.error_code), answer.error_msg
     if result.error_code == 0:
         result.outcome = 'reached'
@@ -523,6 +512,52 @@ def _goal(step: GoalStep, driver, result: StepResult, poll) -> None:
     end = driver.latest_truth()
     moved = math.hypot(end[1] - start[1], end[2] - start[2])
     result.outcome = 'refused' if moved < REFUSED_MOTION_M else 'failed'
+
+
+def _waypoints(step: WaypointsStep, driver, result: StepResult, poll) -> None:
+    answer = _action_result(driver.send_waypoints(step.poses, poll), step.timeout_s,
+                            driver, result, poll)
+    if answer is None:
+        return
+    missed = list(answer.missed_waypoints)
+    if not missed and answer.error_code == 0:
+        result.outcome = 'reached'
+        return
+    result.outcome = 'failed'
+    result.error_code = int(missed[0].error_code) if missed else 9000
+    said = [f'waypoint {m.index + 1} missed: {error_label(int(m.error_code))}'
+            + (f' ({m.error_msg})' if m.error_msg else '') for m in missed]
+    if answer.error_code:
+        said.append(f'FollowWaypoints error {int(answer.error_code)}: {answer.error_msg}')
+    result.error_message = '; '.join(said)
+
+
+def _action_result(handle, timeout_s: float, driver, result: StepResult, poll):
+    """
+    Wait for an action goal's result (None: refused or timed out, recorded in result).
+
+    The result is asked for again every RESULT_REQUEST_S of wall time: like a goal, a
+    get_result request can be lost in discovery (its answer goes to a reader the server
+    has not matched yet). Seen under a CPU hog in lockstep at max: a goal refused at
+    once never got its answer, and its 10 s of simulated time ran out.
+    """
+    if handle is None or not handle.accepted:
+        result.outcome, result.error_code = 'refused', 9000
+        result.error_message = 'the goal was rejected'
+        return None
+    futures = [handle.get_result_async()]
+    asked = time.monotonic()
+    deadline = result.start_s + timeout_s
+    while not any(future.done() for future in futures):
+        if poll() > deadline:
+            driver.cancel(handle, poll)
+            result.outcome = 'timeout'
+            return None
+        if time.monotonic() - asked > RESULT_REQUEST_S:
+            futures.append(handle.get_result_async())
+            asked = time.monotonic()
+        driver.tick()
+    return next(future for future in futures if future.done()).result().result
 
 
 def _command(step: CommandStep, driver, result: StepResult, poll) -> None:
@@ -595,7 +630,7 @@ def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
         occupancy = load_map(find_map_file(scenario.map_name))
     except Exception:  # noqa: B902 - a plot without its map is still a plot
         occupancy = None
-    goals = [(g.x, g.y, g.yaw) for g in scenario.goals]
+    goals = scenario.goal_poses
     plot_run(path_png, occupancy, record.truth, record.estimate, plans, goals,
              collision_points, scenario.authorised_zone,
              title=f'{scenario.name}: {verdict}',

@@ -9,7 +9,7 @@ import textwrap
 from mecanum_bringup.scenario import (
     build_world, CmdVelStep, CommandStep, Criteria, find_scenarios, FreezeStep, GoalStep,
     judge, load_scenario, localization_errors, NAVIGATE_TO_POSE_ERRORS, RunRecord,
-    scenario_world_document, ScenarioError, StepResult, track_array, WaitStep)
+    scenario_world_document, ScenarioError, StepResult, track_array, WaitStep, WaypointsStep)
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_navigation.map_io import find_map_file
 from mecanum_navigation.safety.zone import make_zone
@@ -48,6 +48,7 @@ scenario:
   spawn: {x: 4.8, y: 1.5, yaw: 1.5}
   initial_pose: {x: 4.9, y: 1.4, yaw: 1.4}
   floor_friction_coefficient: 0.3
+  sensor_noise_scale: 2.5
   real_time_factor: 2.0
   seed: 7
   authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
@@ -83,8 +84,8 @@ def test_a_minimal_file_gets_the_world_defaults(tmp_path):
     assert scenario.spawn == (2.95, 2.0, 0.0) == APARTMENT.robot_start
     assert scenario.initial_pose == scenario.spawn
     assert scenario.authorised_zone == APARTMENT.test_zone
-    assert (scenario.floor_friction_coefficient, scenario.real_time_factor,
-            scenario.seed) == (0.0, 1.0, 0)
+    assert (scenario.floor_friction_coefficient, scenario.sensor_noise_scale,
+            scenario.real_time_factor, scenario.seed) == (0.0, 1.0, 1.0, 0)
     assert scenario.criteria == Criteria(None, True, True, None)
     assert scenario.expect == 'pass'
     assert scenario.steps == (GoalStep(5.1, 6.2, 0.0, 120.0, 'reached', None),)
@@ -99,6 +100,7 @@ def test_a_full_file_loads_every_field(tmp_path):
     assert scenario.spawn == (4.8, 1.5, 1.5)
     assert scenario.initial_pose == (4.9, 1.4, 1.4)
     assert scenario.floor_friction_coefficient == 0.3
+    assert scenario.sensor_noise_scale == 2.5
     assert scenario.real_time_factor == 2.0
     assert scenario.seed == 7
     assert scenario.authorised_zone == make_zone([(0.1, 0.1), (9.9, 0.1), (9.9, 7.9),
@@ -220,6 +222,34 @@ def test_new_steps_and_command_expectations_load(tmp_path):
         "step 4 command 'strafe right 3 m': done in 15.0 s (expected rejected)")
 
 
+def test_a_waypoints_step_loads_and_is_judged_on_missed_waypoints(tmp_path):
+    scenario = load_scenario(write(tmp_path, MINIMAL.replace(
+        '  - goal: {x: 5.1, y: 6.2}\n', """\
+  - waypoints:
+      poses: [{x: 3.5, y: 3.0}, {x: 1.5, y: 1.2, yaw: -1.5708}]
+  - goal: {x: 5.1, y: 6.2}
+  - waypoints: {poses: [{x: 2.95, y: 2.0}], timeout_s: 30}
+""")))
+    first, goal, last = scenario.steps
+    assert first == WaypointsStep(((3.5, 3.0, 0.0), (1.5, 1.2, -1.5708)), 240.0)
+    assert last == WaypointsStep(((2.95, 2.0, 0.0),), 30.0)
+    assert first.describe() == 'waypoints (3.50, 3.00) -> (1.50, 1.20)'
+    assert scenario.goal_poses == [(3.5, 3.0, 0.0), (1.5, 1.2, -1.5708), (5.1, 6.2, 0.0),
+                                   (2.95, 2.0, 0.0)]
+    record = RunRecord(truth=np.array([[0.0, 3.0, 2.0, 0.0]]), step_results=[
+        StepResult('waypoints', 'reached', 0, '', 0.0, 30.0),
+        StepResult('goal', 'reached', 0, '', 30.0, 60.0),
+        StepResult('waypoints', 'failed', 9103, 'waypoint 1 missed: NO_VALID_PATH (9103)',
+                   60.0, 61.0)])
+    verdict = judge(scenario, record)
+    assert [c.passed for c in verdict.criteria[:3]] == [True, True, False]
+    assert verdict.criteria[0].detail == (
+        'step 1 waypoints (3.50, 3.00) -> (1.50, 1.20): reached in 30.0 s')
+    assert verdict.criteria[2].detail == (
+        'step 3 waypoints (2.95, 2.00): failed in 1.0 s: waypoint 1 missed: NO_VALID_PATH '
+        '(9103) (expected reached)')
+
+
 def test_an_empty_zone_means_no_zone(tmp_path):
     scenario = load_scenario(write(tmp_path, MINIMAL + '  authorised_zone: []\n'))
     assert scenario.authorised_zone is None
@@ -285,6 +315,8 @@ BAD_BODIES = [
      "spawn: the world's moving obstacle 'person': path passes through robot_start"),
     ('  initial_pose: {x: .nan, y: 1}\n' + STEPS, 'initial_pose.x: must be a finite number'),
     ('  floor_friction_coefficient: -0.1\n' + STEPS, 'floor_friction_coefficient: must be >= 0'),
+    ('  sensor_noise_scale: -1\n' + STEPS, 'sensor_noise_scale: must be >= 0, not -1'),
+    ('  sensor_noise_scale: .nan\n' + STEPS, 'sensor_noise_scale: must be a finite number'),
     ('  real_time_factor: 0\n' + STEPS, 'real_time_factor: must be > 0, not 0'),
     ('  real_time_factor: fast\n' + STEPS, "real_time_factor: must be a number, not 'fast'"),
     ('  seed: 1.5\n' + STEPS, 'seed: must be an integer >= 0, not 1.5'),
@@ -321,9 +353,20 @@ BAD_BODIES = [
     ('  steps: []\n', 'steps: must be a non-empty list of steps'),
     ('  steps: {goal: {x: 1, y: 1}}\n', 'steps: must be a non-empty list of steps'),
     ('  steps:\n  - goal: {x: 1, y: 1}\n    wait: {duration_s: 1}\n',
-     'steps[0]: needs exactly one of goal, command, cmd_vel, wait, freeze, got goal, wait'),
-    ('  steps:\n  - fly: {x: 1}\n', 'steps[0]: needs exactly one of goal, command, cmd_vel, '
-     'wait, freeze, got none'),
+     'steps[0]: needs exactly one of goal, waypoints, command, cmd_vel, wait, freeze, got '
+     'goal, wait'),
+    ('  steps:\n  - fly: {x: 1}\n', 'steps[0]: needs exactly one of goal, waypoints, command, '
+     'cmd_vel, wait, freeze, got none'),
+    ('  steps:\n  - waypoints: {poses: []}\n',
+     'steps[0].waypoints.poses: must be a non-empty list of poses {x, y, yaw}, not []'),
+    ('  steps:\n  - waypoints: [{x: 1, y: 2}]\n',
+     'steps[0].waypoints: must be a mapping with keys poses'),
+    ('  steps:\n  - waypoints: {poses: [{x: 1, y: 2}, {x: 3}]}\n',
+     "steps[0].waypoints.poses[1]: missing key 'y'"),
+    ('  steps:\n  - waypoints: {poses: [{x: 1, y: 2}], timeout_s: -5}\n',
+     'steps[0].waypoints.timeout_s: must be > 0, not -5'),
+    ('  steps:\n  - waypoints: {poses: [{x: 1, y: 2}], expect: refused}\n',
+     'steps[0].waypoints.expect: unknown key (allowed: poses, timeout_s)'),
     ('  steps:\n  - forward 1 m\n', 'steps[0]: must be a mapping with one of goal'),
     ('  steps:\n  - wait: {duration_s: 1}\n  - goal: {x: 1}\n', "steps[1].goal: missing key 'y'"),
     ('  steps:\n  - wait: {duration_s: 1}\n  - goal: {x: 1, y: 2, yaw: north}\n',
@@ -624,7 +667,7 @@ def test_localization_errors_skip_estimates_outside_the_truth_and_bad_rows():
 EXPECTED_FILES = {
     'kitchen_run', 'bedroom_and_back', 'strafe_behind_bed', 'goal_outside_zone_refused',
     'goal_in_wall_refused', 'pushed_into_wall', 'must_fail_timeout', 'slippery_floor',
-    'text_commands', 'apartment_tour'}
+    'text_commands', 'apartment_tour', 'nav2_waypoints'}
 #: Goals nearer than 0.3 m to furniture (each more than the 0.2 m footprint radius): the
 #: strip behind the bed is 0.6 m wide; the tour also stops by the hallway console and
 #: the armchair. Every other goal has at least 0.3 m.
@@ -656,6 +699,11 @@ def test_shipped_spawns_and_goals_are_where_they_must_be(shipped):
         assert scenario.initial_pose == scenario.spawn
         goal_index = 0
         for step in scenario.steps:
+            if isinstance(step, WaypointsStep):
+                for x, y, _ in step.poses:   # every waypoint is to be reached
+                    assert world.is_free(x, y, clearance_m=0.25), (scenario.name, x, y)
+                    assert scenario.authorised_zone.footprint_inside(
+                        x, y, ROBOT.footprint_radius_m), (scenario.name, x, y)
             if not isinstance(step, GoalStep):
                 continue
             where = f'{scenario.name} {step.describe()}'

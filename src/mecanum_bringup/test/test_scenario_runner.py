@@ -68,3 +68,14 @@ def test_recording_live_view_and_speed_are_options(tmp_path):
     assert parameter(recorder, 'use_sim_time') is True
     simulator = system.nodes[names.index('simulator')]
     assert parameter(simulator, 'real_time_factor') == pytest.approx(2.5)
+    assert parameter(simulator, 'sensor_noise_scale') == pytest.approx(1.0)
+
+
+def test_the_sensor_noise_scale_reaches_the_simulator(tmp_path):
+    path = tmp_path / 'noisy.yaml'
+    path.write_text((SCENARIOS / 'text_commands.yaml').read_text().replace(
+        '  world: apartment\n', '  world: apartment\n  sensor_noise_scale: 3.0\n'))
+    scenario = load_scenario(path)
+    system = load_system(write_run_files(scenario, tmp_path, RunOptions(tmp_path)), {})
+    simulator = system.nodes[labels(system).index('simulator')]
+    assert parameter(simulator, 'sensor_noise_scale') == pytest.approx(3.0)

@@ -27,8 +27,10 @@ core; the fastest timers of the stack run at 50 Hz, once per clock step),
 ``ground_truth_rate_hz`` (50), lidar
 ``lidar_beams`` (360), ``lidar_range_max_m`` (12.0), ``lidar_rate_hz`` (10.0),
 ``lidar_noise_stddev_m`` (0.01), IMU ``imu_gyro_noise_stddev_rad_s`` (0.005),
-``imu_accel_noise_stddev_m_s2`` (0.05), ``floor_friction_coefficient`` (0: the
-robot's wheel_friction_coefficient; lower makes the wheels slip), and the robot
+``imu_accel_noise_stddev_m_s2`` (0.05), ``sensor_noise_scale`` (1.0: multiplies those
+three noise levels, 0 = noiseless; scenario sweeps vary it),
+``floor_friction_coefficient`` (0: the robot's wheel_friction_coefficient; lower makes
+the wheels slip), and the robot
 parameters of motor_params.yaml (including the lidar's mount pose). The simulator
 never uses sim time itself (it makes it).
 
@@ -112,16 +114,20 @@ class SimulatorNode(Node):
                 give_up_s=number('lockstep_give_up_s', 60.0)))
         ground_truth_rate_hz = positive('ground_truth_rate_hz',
                                         number('ground_truth_rate_hz', 50.0))
+        noise_scale = number('sensor_noise_scale', 1.0)
+        if not (math.isfinite(noise_scale) and noise_scale >= 0.0):
+            raise ValueError(f'sensor_noise_scale must be >= 0 (0: noiseless sensors), got '
+                             f'{noise_scale}')
         lidar = LidarConfig(
             beams=int(declare('lidar_beams', 360).value),
             range_max_m=number('lidar_range_max_m', 12.0),
             rate_hz=number('lidar_rate_hz', 10.0),
-            noise_stddev_m=number('lidar_noise_stddev_m', 0.01),
+            noise_stddev_m=noise_scale * number('lidar_noise_stddev_m', 0.01),
             mount_x_m=robot.lidar_mount_x_m, mount_y_m=robot.lidar_mount_y_m,
             mount_yaw_rad=robot.lidar_mount_yaw_rad)
         imu = ImuConfig(
-            gyro_noise_stddev_rad_s=number('imu_gyro_noise_stddev_rad_s', 0.005),
-            accel_noise_stddev_m_s2=number('imu_accel_noise_stddev_m_s2', 0.05))
+            gyro_noise_stddev_rad_s=noise_scale * number('imu_gyro_noise_stddev_rad_s', 0.005),
+            accel_noise_stddev_m_s2=noise_scale * number('imu_accel_noise_stddev_m_s2', 0.05))
         seed = int(declare('seed', 0).value)
         if seed < 0:
             raise ValueError(f'parameter seed must be >= 0, got {seed}')

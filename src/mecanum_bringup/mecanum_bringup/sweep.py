@@ -1,0 +1,456 @@
+"""
+Sweep files: one scenario run over many variants, the same variants every time (pure).
+
+A sweep varies a scenario along axes and runs every variant, so that a failure rate
+replaces a single pass or fail. One sweep per YAML file; units as in scenario files::
+
+    sweep:
+      name: tour_robustness            # required, [A-Za-z0-9_-]+
+      scenario: apartment_tour         # required: a shipped scenario's name, or a scenario
+                                       # file relative to this file
+      mode: random                     # grid (default: every combination of the axes'
+                                       # lists) | random (samples draws from master_seed)
+      samples: 50                      # random: how many variants
+      master_seed: 1                   # random: the same file gives the same variants
+      axes:                            # at least one; each a list of values, or in random
+                                       # mode a distribution
+        seed: {range: [0, 1000]}       # the scenario's seed (sensor noise, the start
+                                       # pose's spread): integers lo <= seed < hi, or a list
+        world: [apartment]             # world names or files (relative to this file)
+        floor_friction_coefficient: {uniform: [0.2, 1.0]}   # or a list; 0 = the robot's own
+        sensor_noise_scale: [0.5, 1.0, 2.0]   # times the simulator's lidar and IMU noise
+        spawn: [{x: 2.95, y: 2.0, yaw: 0.0}, {x: 4.8, y: 2.0}]   # start poses (initial
+                                       # pose = spawn)
+        person: [{speed_m_s: 0.5}, {speed_m_s: 1.2, path: [[5.0, 2.9], [7.2, 3.3]]}]
+                                       # changes to the world's moving obstacle 'person'
+                                       # (speed_m_s, path, loop, radius_m; name: another one)
+        goals: {sample: 4}             # goal steps kept: k of them at random, in order;
+                                       # or a list of index lists, e.g. [[0, 1], [2, 3]]
+                                       # (indices among the scenario's goal steps, from 0)
+
+In grid mode every axis is a list and the variants are their cartesian product, in the
+order of the axes above (the last axis varies fastest). In random mode variant i draws
+each axis from its own generator seeded by (master_seed, i), so adding samples keeps
+the earlier variants and a variant's values do not depend on the other axes.
+
+:func:`load_sweep` raises :class:`SweepError` naming the file, the line and the key,
+e.g. ``sweep.yaml:7: axes.seed.range: must be [lo, hi] integers with lo < hi``.
+:func:`variants` lists the :class:`Variant` s; :func:`variant_documents` turns one into
+the scenario document (and, for the person axis, the world document) that the runner
+writes and loads with :func:`mecanum_bringup.scenario.load_scenario`, which checks it
+like any scenario file (a spawn in a wall is an error naming the variant).
+"""
+
+import copy
+from dataclasses import dataclass, field
+import itertools
+import json
+import math
+from pathlib import Path
+import random
+import re
+from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
+
+import yaml
+
+PathLike = Union[str, Path]
+
+#: The axes, in the order in which grid variants vary them (the last fastest).
+AXES = ('seed', 'world', 'floor_friction_coefficient', 'sensor_noise_scale', 'spawn',
+        'person', 'goals')
+MODES = ('grid', 'random')
+SWEEP_KEYS = ('name', 'scenario', 'mode', 'samples', 'master_seed', 'axes', 'description')
+PERSON_KEYS = ('name', 'speed_m_s', 'path', 'loop', 'radius_m')
+#: Most variants a sweep may have (a typo in a grid should not start a month of runs).
+MAX_VARIANTS = 10000
+_NAME = re.compile(r'[A-Za-z0-9_-]+')
+
+
+class SweepError(ValueError):
+    """A malformed sweep file; the message names the file, the line and the key."""
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A checked sweep file (axes: axis name -> list of values or a distribution)."""
+
+    name: str
+    source: Path
+    scenario_file: Path
+    mode: str
+    axes: Dict[str, Any]
+    samples: int = 0
+    master_seed: int = 0
+    description: str = ''
+    goal_count: int = 0   # goal steps in the scenario (for the goals axis)
+    scenario_document: Dict[str, Any] = field(default_factory=dict, compare=False,
+                                              repr=False)
+
+    @property
+    def fingerprint(self) -> str:
+        """Return what fixes the variants (mode, samples, seed, axes) as canonical JSON."""
+        return json.dumps({'scenario': str(self.scenario_file), 'mode': self.mode,
+                           'samples': self.samples, 'master_seed': self.master_seed,
+                           'axes': self.axes}, sort_keys=True)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One variant: its index (from 0) and the value of each axis (JSON-ready)."""
+
+    index: int
+    values: Dict[str, Any]
+
+    def name(self, sweep_name: str) -> str:
+        """Return the variant's run name, e.g. 'tour_robustness_0007'."""
+        return f'{sweep_name}_{self.index:04d}'
+
+    @property
+    def key(self) -> str:
+        """Return the values as canonical JSON (what a results store compares)."""
+        return json.dumps(self.values, sort_keys=True)
+
+    def describe(self) -> str:
+        """Return e.g. 'seed=3 floor_friction_coefficient=0.41'."""
+        return ' '.join(f'{axis}={_short(value)}' for axis, value in self.values.items())
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, float):
+        return f'{value:g}'
+    if isinstance(value, dict) and set(value) <= {'x', 'y', 'yaw'}:
+        return '({:g},{:g},{:g})'.format(value['x'], value['y'], value.get('yaw', 0.0))
+    return json.dumps(value, separators=(',', ':'))
+
+
+# --- loading -------------------------------------------------------------------------
+
+def load_sweep(path: PathLike) -> Sweep:
+    """Read and check a sweep file; raise SweepError naming the file, line and key."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding='utf-8')
+    except FileNotFoundError:
+        raise SweepError(f'{path}: no such sweep file') from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise SweepError(f'{path}: cannot read sweep file: {error}') from None
+    try:
+        node = yaml.compose(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, 'problem_mark', None)
+        problem = getattr(error, 'problem', None) or str(error)
+        line = f':{mark.line + 1}' if mark else ''
+        raise SweepError(f'{path.name}{line}: YAML syntax error: {problem}') from None
+    lines: Dict[str, int] = {}
+    if node is not None:
+        _key_lines(node, '', lines)
+    return _Parser(path, lines).parse(doc)
+
+
+def _key_lines(node: yaml.Node, key: str, lines: Dict[str, int]) -> None:
+    """Record the line (from 1) of every key path in a composed YAML node tree."""
+    lines.setdefault(key, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            child = f'{key}.{key_node.value}' if key else str(key_node.value)
+            lines[child] = key_node.start_mark.line + 1
+            _key_lines(value_node, child, lines)
+    elif isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            _key_lines(item, f'{key}[{index}]', lines)
+
+
+class _Parser:
+    """Checks one sweep document; every failure names the file, the line and the key."""
+
+    def __init__(self, path: Path, lines: Dict[str, int]):
+        self.path = path
+        self.lines = lines
+
+    def fail(self, key: str, message: str) -> NoReturn:
+        """Raise SweepError for key, with the line of the key (or of its nearest parent)."""
+        probe = key
+        while probe and probe not in self.lines:
+            probe = re.sub(r'(\.[^.\[]*|\[\d+\])$', '', probe)
+        line = self.lines.get(probe)
+        where = f'{self.path.name}:{line}' if line else self.path.name
+        raise SweepError(f'{where}: {key}: {message}' if key else f'{where}: {message}')
+
+    def mapping(self, value: Any, key: str, required: Sequence[str],
+                optional: Sequence[str]) -> Dict[str, Any]:
+        """Check value is a mapping with the required keys and no unknown ones."""
+        allowed = ', '.join(list(required) + list(optional))
+        if not isinstance(value, dict):
+            self.fail(key, f'must be a mapping with keys {allowed}, not {value!r}')
+        for name in value:
+            if name not in required and name not in optional:
+                self.fail(f'{key}.{name}' if key else str(name),
+                          f'unknown key (allowed: {allowed})')
+        for name in required:
+            if name not in value:
+                self.fail(key, f"missing key '{name}'")
+        return value
+
+    def integer(self, value: Any, key: str, minimum: int) -> int:
+        """Return value if it is an integer >= minimum."""
+        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+            self.fail(key, f'must be an integer >= {minimum}, not {value!r}')
+        return value
+
+    def number(self, value: Any, key: str, minimum: float = -math.inf) -> float:
+        """Return value as a finite float >= minimum."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not math.isfinite(value):
+            self.fail(key, f'must be a finite number, not {value!r}')
+        if value < minimum:
+            self.fail(key, f'must be >= {minimum:g}, not {value!r}')
+        return float(value)
+
+    def parse(self, doc: Any) -> Sweep:
+        """Check the whole document and return the Sweep."""
+        if not isinstance(doc, dict) or 'sweep' not in doc:
+            self.fail('', 'expected a top-level "sweep:" mapping')
+        if len(doc) != 1:
+            other = next(key for key in doc if key != 'sweep')
+            self.fail(str(other), 'unknown top-level key (only "sweep:" is allowed)')
+        raw = self.mapping(doc['sweep'], 'sweep', ('name', 'scenario', 'axes'),
+                           [k for k in SWEEP_KEYS if k not in ('name', 'scenario', 'axes')])
+        name = raw['name']
+        if not isinstance(name, str) or not _NAME.fullmatch(name):
+            self.fail('sweep.name', f'must be letters, digits, _ and - only, not {name!r}')
+        description = raw.get('description') or ''
+        if not isinstance(description, str):
+            self.fail('sweep.description', f'must be a string, not {description!r}')
+        mode = raw.get('mode', 'grid')
+        if mode not in MODES:
+            self.fail('sweep.mode', f'must be one of {", ".join(MODES)}, not {mode!r}')
+        scenario_file, scenario_doc = self.scenario(raw['scenario'])
+        goal_count = sum(1 for step in scenario_doc['scenario'].get('steps') or []
+                         if isinstance(step, dict) and 'goal' in step)
+        samples = master_seed = 0
+        if mode == 'random':
+            for key in ('samples', 'master_seed'):
+                if key not in raw:
+                    self.fail('sweep', f"missing key '{key}' (needed in random mode)")
+            samples = self.integer(raw['samples'], 'sweep.samples', 1)
+            master_seed = self.integer(raw['master_seed'], 'sweep.master_seed', 0)
+        else:
+            for key in ('samples', 'master_seed'):
+                if key in raw:
+                    self.fail(f'sweep.{key}', 'is only allowed with mode: random')
+        axes_raw = self.mapping(raw['axes'], 'sweep.axes', (), AXES)
+        if not axes_raw:
+            self.fail('sweep.axes', f'needs at least one axis of {", ".join(AXES)}')
+        axes = {axis: self.axis(axis, axes_raw[axis], f'sweep.axes.{axis}', mode, goal_count)
+                for axis in AXES if axis in axes_raw}
+        sweep = Sweep(name=name, source=self.path, scenario_file=scenario_file, mode=mode,
+                      axes=axes, samples=samples, master_seed=master_seed,
+                      description=description, goal_count=goal_count,
+                      scenario_document=scenario_doc)
+        count = variant_count(sweep)
+        if count > MAX_VARIANTS:
+            self.fail('sweep.axes' if mode == 'grid' else 'sweep.samples',
+                      f'{count} variants, more than the {MAX_VARIANTS} allowed')
+        return sweep
+
+    def scenario(self, value: Any) -> Tuple[Path, Dict[str, Any]]:
+        """Return the scenario file (relative to the sweep, or a shipped name) and its doc."""
+        if not isinstance(value, str) or not value.strip():
+            self.fail('sweep.scenario', f'must be a scenario name or file, not {value!r}')
+        candidate = Path(value).expanduser()
+        if not candidate.is_absolute():
+            candidate = self.path.parent / candidate
+        if not candidate.is_file() and '/' not in value and not value.endswith('.yaml'):
+            candidate = shipped_scenarios_folder() / f'{value}.yaml'
+        if not candidate.is_file():
+            self.fail('sweep.scenario', f'no scenario file {value!r} (looked for {candidate})')
+        try:
+            doc = yaml.safe_load(candidate.read_text(encoding='utf-8'))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+            self.fail('sweep.scenario', f'cannot read {candidate}: {error}')
+        if not isinstance(doc, dict) or not isinstance(doc.get('scenario'), dict):
+            self.fail('sweep.scenario', f'{candidate} is not a scenario file')
+        return candidate.resolve(), doc
+
+    def axis(self, axis: str, value: Any, key: str, mode: str, goal_count: int) -> Any:
+        """Check one axis: a non-empty list, or (random mode) a distribution mapping."""
+        if isinstance(value, dict):
+            return self.distribution(axis, value, key, mode, goal_count)
+        if not isinstance(value, list) or not value:
+            self.fail(key, 'must be a non-empty list of values'
+                      + (' or a distribution' if mode == 'random' else ''))
+        check = {
+            'seed': lambda v, k: self.integer(v, k, 0),
+            'world': self.world,
+            'floor_friction_coefficient': lambda v, k: self.number(v, k, 0.0),
+            'sensor_noise_scale': lambda v, k: self.number(v, k, 0.0),
+            'spawn': self.pose,
+            'person': self.person,
+            'goals': lambda v, k: self.goal_subset(v, k, goal_count),
+        }[axis]
+        return [check(item, f'{key}[{index}]') for index, item in enumerate(value)]
+
+    def distribution(self, axis: str, value: Dict[str, Any], key: str, mode: str,
+                     goal_count: int) -> Dict[str, Any]:
+        """Check a distribution: range (seed), uniform (numbers) or sample (goals)."""
+        kinds = {'seed': 'range', 'floor_friction_coefficient': 'uniform',
+                 'sensor_noise_scale': 'uniform', 'goals': 'sample'}
+        if axis not in kinds:
+            self.fail(key, 'must be a non-empty list of values (no distribution for '
+                      f'{axis})')
+        kind = kinds[axis]
+        if mode != 'random':
+            self.fail(key, f'a distribution ({kind}) needs mode: random; a grid takes lists')
+        self.mapping(value, key, (kind,), ())
+        bounds = value[kind]
+        where = f'{key}.{kind}'
+        if kind == 'sample':
+            count = self.integer(bounds, where, 1)
+            if count > goal_count:
+                self.fail(where, f'{count} goals, but the scenario has {goal_count}')
+            return {'sample': count}
+        if not isinstance(bounds, list) or len(bounds) != 2:
+            self.fail(where, f'must be [lo, hi], not {bounds!r}')
+        if kind == 'range':
+            lo, hi = (self.integer(b, where, 0) for b in bounds)
+        else:
+            lo, hi = (self.number(b, where, 0.0) for b in bounds)
+        if not lo < hi:
+            self.fail(where, f'must be [lo, hi] with lo < hi, not {bounds!r}')
+        return {kind: [lo, hi]}
+
+    def world(self, value: Any, key: str) -> str:
+        """Return a world name, or a world file made absolute."""
+        if not isinstance(value, str) or not value.strip():
+            self.fail(key, f'must be a world name or file, not {value!r}')
+        if '/' in value or value.endswith(('.yaml', '.yml')):
+            path = Path(value).expanduser()
+            path = path if path.is_absolute() else self.path.parent / path
+            if not path.is_file():
+                self.fail(key, f'no world file {value!r} (looked for {path})')
+            return str(path.resolve())
+        return value
+
+    def pose(self, value: Any, key: str) -> Dict[str, float]:
+        """Return {x, y, yaw} (yaw optional, 0)."""
+        raw = self.mapping(value, key, ('x', 'y'), ('yaw',))
+        return {'x': self.number(raw['x'], f'{key}.x'), 'y': self.number(raw['y'], f'{key}.y'),
+                'yaw': self.number(raw.get('yaw', 0.0), f'{key}.yaw')}
+
+    def person(self, value: Any, key: str) -> Dict[str, Any]:
+        """Return the changes to a world moving obstacle (checked again with the world)."""
+        raw = self.mapping(value, key, (), PERSON_KEYS)
+        if not raw:
+            self.fail(key, f'must change at least one of {", ".join(PERSON_KEYS[1:])}')
+        changes = dict(raw)
+        if 'speed_m_s' in raw and self.number(raw['speed_m_s'], f'{key}.speed_m_s') <= 0:
+            self.fail(f'{key}.speed_m_s', f'must be > 0, not {raw["speed_m_s"]!r}')
+        if 'name' in raw and (not isinstance(raw['name'], str) or not raw['name']):
+            self.fail(f'{key}.name', f'must be a moving obstacle name, not {raw["name"]!r}')
+        return changes
+
+    def goal_subset(self, value: Any, key: str, goal_count: int) -> List[int]:
+        """Return a non-empty list of distinct goal indices in order."""
+        if not isinstance(value, list) or not value:
+            self.fail(key, f'must be a non-empty list of goal indices, not {value!r}')
+        indices = [self.integer(item, f'{key}[{i}]', 0) for i, item in enumerate(value)]
+        for index in indices:
+            if index >= goal_count:
+                self.fail(key, f'goal index {index}, but the scenario has {goal_count} '
+                          'goal steps (indices from 0)')
+        if indices != sorted(set(indices)):
+            self.fail(key, f'must be distinct indices in increasing order, not {value!r}')
+        return indices
+
+
+def shipped_scenarios_folder() -> Path:
+    """Return mecanum_bringup's installed scenarios folder."""
+    from ament_index_python.packages import get_package_share_directory
+    return Path(get_package_share_directory('mecanum_bringup')) / 'scenarios'
+
+
+# --- the variants --------------------------------------------------------------------
+
+def variant_count(sweep: Sweep) -> int:
+    """Return how many variants the sweep has."""
+    if sweep.mode == 'random':
+        return sweep.samples
+    return math.prod(len(values) for values in sweep.axes.values())
+
+
+def variants(sweep: Sweep) -> List[Variant]:
+    """Return the sweep's variants, in order (the same for the same file, always)."""
+    if sweep.mode == 'grid':
+        names = list(sweep.axes)
+        return [Variant(index, dict(zip(names, combination))) for index, combination in
+                enumerate(itertools.product(*(sweep.axes[name] for name in names)))]
+    return [Variant(index, {axis: _draw(axis, spec, sweep, index)
+                            for axis, spec in sweep.axes.items()})
+            for index in range(sweep.samples)]
+
+
+def _draw(axis: str, spec: Any, sweep: Sweep, index: int) -> Any:
+    """Draw one axis's value for variant index (its own generator: master seed, index)."""
+    rng = random.Random(f'{sweep.master_seed}/{index}/{axis}')
+    if isinstance(spec, list):
+        return copy.deepcopy(spec[rng.randrange(len(spec))])
+    if 'range' in spec:
+        return rng.randrange(*spec['range'])
+    if 'uniform' in spec:
+        return round(rng.uniform(*spec['uniform']), 4)
+    return sorted(rng.sample(range(sweep.goal_count), spec['sample']))
+
+
+def variant_documents(sweep: Sweep, variant: Variant,
+                      world_document: Optional[Dict[str, Any]] = None
+                      ) -> Tuple[Dict[str, Any], Optional[Dict[str, Any]]]:
+    """
+    Return the variant's scenario document and, for the person axis, its world document.
+
+    world_document is the (base) world file's document, needed for the person axis: the
+    named moving obstacle (default 'person') gets the variant's changes; the runner writes
+    the returned world document to a file and points the scenario's world at it. Raise
+    SweepError when the person axis names an obstacle the world does not have.
+    """
+    doc = copy.deepcopy(sweep.scenario_document)
+    scenario = doc['scenario']
+    scenario['name'] = variant.name(sweep.name)
+    values = variant.values
+    if 'seed' in values:
+        scenario['seed'] = values['seed']
+    if 'world' in values:
+        scenario['world'] = values['world']
+    if 'floor_friction_coefficient' in values:
+        scenario['floor_friction_coefficient'] = values['floor_friction_coefficient']
+    if 'sensor_noise_scale' in values:
+        scenario['sensor_noise_scale'] = values['sensor_noise_scale']
+    if 'spawn' in values:
+        scenario['spawn'] = dict(values['spawn'])
+        scenario['initial_pose'] = dict(values['spawn'])
+    if 'goals' in values:
+        keep, goal_index, steps = set(values['goals']), 0, []
+        for step in scenario['steps']:
+            if isinstance(step, dict) and 'goal' in step:
+                if goal_index in keep:
+                    steps.append(step)
+                goal_index += 1
+            else:
+                steps.append(step)
+        scenario['steps'] = steps
+    world = None
+    if 'person' in values:
+        if world_document is None:
+            raise SweepError(f'{sweep.source.name}: axes.person: the world document is '
+                             'needed to change a moving obstacle')
+        world = copy.deepcopy(world_document)
+        changes = dict(values['person'])
+        name = changes.pop('name', 'person')
+        movers = world.get('world', {}).get('moving_obstacles') or []
+        matching = [m for m in movers if isinstance(m, dict) and m.get('name') == name]
+        if not matching:
+            raise SweepError(f'{sweep.source.name}: axes.person: the world has no moving '
+                             f'obstacle named {name!r} (it has '
+                             f'{", ".join(repr(m.get("name")) for m in movers) or "none"})')
+        matching[0].update(changes)
+    return doc, world

@@ -1,0 +1,305 @@
+"""
+Reports of a sweep: rate tables, the per-axis plot, JUnit XML and one HTML page (no ROS).
+
+Rates come from :mod:`mecanum_bringup.sweep_stats`; rows are the
+:class:`mecanum_bringup.sweep_store.VariantRow` s of a results store. The plot is drawn
+with matplotlib's object API on an Agg canvas (no pyplot, no display), as in
+:mod:`mecanum_bringup.scenario_report`. The HTML page is self-contained (the plot is
+embedded as a base64 PNG); it links the worst variants' run folders relatively, so the
+sweep's folder can be moved or served as a whole.
+"""
+
+import base64
+import html
+import math
+import os
+from pathlib import Path
+from typing import List, Optional, Sequence, Tuple, Union
+import xml.etree.ElementTree as ElementTree
+
+from mecanum_bringup.scenario_report import one_line, xml_text
+from mecanum_bringup.sweep_stats import (
+    axis_rates, Change, criterion_rates, failed_criteria, Rate, value_label, worst_variants)
+from mecanum_bringup.sweep_store import VariantRow
+
+PathLike = Union[str, Path]
+#: Longest first failure shown in a table cell or a JUnit message.
+MAX_DETAIL_CHARS = 200
+#: The files of a run folder that the page links, if they exist.
+RUN_FILES = ('run.png', 'summary.json', 'bag')
+
+
+def _percent(value: float) -> str:
+    return f'{100 * value:.1f} %'
+
+
+def _interval(rate: Rate) -> str:
+    return f'{100 * rate.low:.1f}-{100 * rate.high:.1f} %' if rate.n else '-'
+
+
+def _fixed_width(rows: Sequence[Sequence[str]], right: Sequence[int] = ()) -> List[str]:
+    """Return the rows (the first is the header) as aligned lines, a dash line second."""
+    widths = [max(len(row[column]) for row in rows) for column in range(len(rows[0]))]
+
+    def line(row: Sequence[str]) -> str:
+        return '  '.join(cell.rjust(width) if column in right else cell.ljust(width)
+                         for column, (cell, width) in enumerate(zip(row, widths))).rstrip()
+
+    return [line(rows[0]), '  '.join('-' * width for width in widths)] + [
+        line(row) for row in rows[1:]]
+
+
+def _status_counts(rows: Sequence[VariantRow]) -> str:
+    counts = {status: sum(row.status == status for row in rows)
+              for status in ('OK', 'UNEXPECTED', 'ERROR')}
+    return (f'{len(rows)} variant{"" if len(rows) == 1 else "s"}: {counts["OK"]} as '
+            f'expected, {counts["UNEXPECTED"]} unexpected, {counts["ERROR"]} errors')
+
+
+def rates_table(rows: Sequence[VariantRow]) -> str:
+    """
+    Return a fixed-width table of the failure rates and a summary line.
+
+    One line per rate (the verdict first, then the criteria): criterion, failures/n, rate,
+    95 % CI (Wilson). The verdict counts ERROR rows as failures.
+    """
+    table = [('criterion', 'failures/n', 'rate', '95 % CI')]
+    for rate in criterion_rates(rows):
+        table.append((rate.name, f'{rate.failures}/{rate.n}',
+                      _percent(rate.rate) if rate.n else '-', _interval(rate)))
+    lines = _fixed_width(table, right=(1, 2, 3))
+    lines.append(_status_counts(rows))
+    return '\n'.join(lines) + '\n'
+
+
+def compare_table(changes: Sequence[Change]) -> str:
+    """
+    Return a fixed-width table of compare's changes and a summary line.
+
+    One line per rate: criterion, A's and B's failures/n with rate and interval, and
+    the change ('worse' or 'better' only when the intervals do not overlap).
+    """
+    table = [('criterion', 'A failures/n', 'A rate (95 % CI)', 'B failures/n',
+              'B rate (95 % CI)', 'change')]
+    for change in changes:
+        cells: List[str] = [change.name]
+        for rate in (change.a, change.b):
+            cells += [f'{rate.failures}/{rate.n}',
+                      f'{_percent(rate.rate)} ({_interval(rate)})' if rate.n else '-']
+        cells.append(change.verdict)
+        table.append(tuple(cells))
+    lines = _fixed_width(table, right=(1, 2, 3, 4))
+    worse = [c.name for c in changes if c.verdict == 'worse']
+    better = [c.name for c in changes if c.verdict == 'better']
+    lines.append(f'{len(worse)} worse{": " + ", ".join(worse) if worse else ""}; '
+                 f'{len(better)} better{": " + ", ".join(better) if better else ""} '
+                 '(beyond the 95 % intervals)')
+    return '\n'.join(lines) + '\n'
+
+
+def plot_axis_rates(rows: Sequence[VariantRow], axes: Sequence[str],
+                    path_png: PathLike) -> None:
+    """
+    Write a PNG of the verdict's failure rate along each axis (one subplot per axis).
+
+    Each value (or bin, see sweep_stats.axis_rates) is a point at its failure rate
+    with its Wilson 95 % interval as an error bar, labelled with the number of runs.
+    An axis without rows says so. At least one subplot is drawn.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    axes = list(axes) or ['(no axes)']
+    figure = Figure(figsize=(8.0, 0.6 + 2.8 * len(axes)), dpi=100)
+    FigureCanvasAgg(figure)
+    for number, axis in enumerate(axes, start=1):
+        plot = figure.add_subplot(len(axes), 1, number)
+        rates = axis_rates(rows, axis)
+        plot.set_title(axis, fontsize=10)
+        plot.set_ylim(-0.02, 1.02)
+        plot.set_ylabel('failure rate')
+        plot.grid(True, axis='y', alpha=0.3)
+        if not rates:
+            plot.text(0.5, 0.5, 'no variants with this axis', ha='center', va='center',
+                      transform=plot.transAxes, color='grey')
+            plot.set_xticks([])
+            continue
+        xs = list(range(len(rates)))
+        values = [rate.rate for _, rate in rates]
+        below = [rate.rate - rate.low for _, rate in rates]
+        above = [rate.high - rate.rate for _, rate in rates]
+        plot.errorbar(xs, values, yerr=[below, above], fmt='o', color='tab:red',
+                      ecolor='grey', capsize=4, markersize=5)
+        for x, (_, rate) in zip(xs, rates):
+            plot.annotate(f'{rate.failures}/{rate.n}', (x, rate.rate),
+                          textcoords='offset points', xytext=(6, 4), fontsize=7)
+        labels = [one_line(label, 24) for label, _ in rates]
+        long_labels = len(rates) > 4 or max(len(label) for label in labels) > 10
+        plot.set_xticks(xs)
+        plot.set_xticklabels(labels, rotation=30 if long_labels else 0,
+                             ha='right' if long_labels else 'center', fontsize=8)
+        plot.set_xlim(-0.5, len(rates) - 0.5)
+    figure.tight_layout()
+    figure.savefig(str(path_png), format='png')
+
+
+def _values_text(row: VariantRow) -> str:
+    return '\n'.join(f'{axis} = {value_label(value)}' for axis, value in row.values.items())
+
+
+def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
+    """
+    Return a JUnit XML report: one testsuite named sweep_name, one testcase per variant.
+
+    A testcase is named by the row's name, classname = sweep_name, time = its wall-clock
+    time. Status UNEXPECTED gives a <failure> (message = first_failure), ERROR an
+    <error> (message = error); OK rows (expected failures included) pass. Each testcase
+    has <properties> with the variant's axis values (as JSON-ish labels) and its status,
+    and a <system-out> with the values, the failed criteria and the run folder.
+    """
+    rows = sorted(rows, key=lambda row: row.index)
+
+    def seconds(value: Optional[float]) -> float:
+        return value if value is not None and math.isfinite(value) else 0.0
+
+    suite = ElementTree.Element('testsuite', {
+        'name': xml_text(sweep_name), 'tests': str(len(rows)),
+        'failures': str(sum(row.status == 'UNEXPECTED' for row in rows)),
+        'errors': str(sum(row.status == 'ERROR' for row in rows)), 'skipped': '0',
+        'time': f'{sum(seconds(row.wall_time_s) for row in rows):.3f}'})
+    for row in rows:
+        case = ElementTree.SubElement(suite, 'testcase', {
+            'name': xml_text(row.name), 'classname': xml_text(sweep_name),
+            'time': f'{seconds(row.wall_time_s):.3f}'})
+        properties = ElementTree.SubElement(case, 'properties')
+        for key, value in [('index', row.index), ('status', row.status)] + list(
+                row.values.items()):
+            ElementTree.SubElement(properties, 'property', {
+                'name': xml_text(key), 'value': xml_text(value_label(value))})
+        if row.status == 'ERROR':
+            error = ElementTree.SubElement(case, 'error', {
+                'message': xml_text(one_line(row.error, 500)), 'type': 'ScenarioError'})
+            error.text = xml_text(row.error)
+        elif row.status != 'OK':
+            failure = ElementTree.SubElement(case, 'failure', {
+                'message': xml_text(one_line(row.first_failure, 500)),
+                'type': 'UnexpectedVerdict'})
+            failure.text = xml_text(
+                f'expected {row.expected}, got {row.verdict or "no verdict"}: '
+                f'{row.first_failure}')
+        failed = failed_criteria(row)
+        system_out = ElementTree.SubElement(case, 'system-out')
+        system_out.text = xml_text(
+            f'{_values_text(row)}\nstatus {row.status}, verdict {row.verdict or "-"} '
+            f'(expected {row.expected})\nfailed criteria: {", ".join(failed) or "none"}\n'
+            f'run folder: {row.run_dir or "-"}')
+    ElementTree.indent(suite)
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
+            + ElementTree.tostring(suite, encoding='unicode') + '\n')
+
+
+def _run_links(row: VariantRow, out_dir: Path, runs_base: Path) -> List[Tuple[str, str]]:
+    """Return (file name, relative link) for the run folder's files that exist."""
+    if not row.run_dir:
+        return []
+    run_dir = Path(row.run_dir)
+    if not run_dir.is_absolute():
+        run_dir = runs_base / run_dir
+    links = []
+    for name in RUN_FILES:
+        target = run_dir / name
+        if target.exists():
+            link = Path(os.path.relpath(target.resolve(), out_dir.resolve())).as_posix()
+            links.append((name, link + ('/' if target.is_dir() else '')))
+    return links
+
+
+def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]],
+                numeric: Sequence[int] = ()) -> str:
+    """Return an HTML table; cells are already HTML (escape them before)."""
+    head = ''.join(f'<th>{cell}</th>' for cell in header)
+    body = ''.join(
+        '<tr>' + ''.join(f'<td class="num">{cell}</td>' if column in numeric
+                         else f'<td>{cell}</td>' for column, cell in enumerate(row)) + '</tr>'
+        for row in rows)
+    return f'<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+
+
+_STYLE = ('body{font-family:sans-serif;margin:2em;max-width:70em}'
+          'table{border-collapse:collapse;margin:0.5em 0 1.5em}'
+          'th,td{border:1px solid #ccc;padding:0.25em 0.6em;text-align:left;'
+          'vertical-align:top}td.num{text-align:right;font-variant-numeric:tabular-nums}'
+          'th{background:#f3f3f3}.bad{color:#b00}pre{margin:0}img{max-width:100%}')
+
+
+def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
+                 axes: Sequence[str], description: str = '', worst_count: int = 10,
+                 runs_base: Optional[PathLike] = None) -> Path:
+    """
+    Write out_dir/report.html, out_dir/rates.png and out_dir/junit.xml; return the HTML path.
+
+    The page (self-contained, every text HTML-escaped) has the sweep's name and
+    description, the number of variants, the rates table with Wilson 95 % intervals,
+    the per-axis plot (embedded as a base64 PNG) with its numbers, and the worst
+    worst_count variants (sweep_stats.worst_variants) with their values, failed criteria,
+    first failure or error, and relative links to their run folder's run.png,
+    summary.json and bag/ when those exist. A row's relative run_dir is taken relative to
+    runs_base (default: out_dir).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    base = Path(runs_base) if runs_base is not None else out_dir
+    esc = html.escape
+    rows = sorted(rows, key=lambda row: row.index)
+
+    png_path = out_dir / 'rates.png'
+    plot_axis_rates(rows, axes, png_path)
+    (out_dir / 'junit.xml').write_text(junit_xml(rows, sweep_name), encoding='utf-8')
+    png = base64.b64encode(png_path.read_bytes()).decode('ascii')
+
+    rate_rows = [(esc(rate.name), f'{rate.failures}/{rate.n}',
+                  _percent(rate.rate) if rate.n else '-', _interval(rate))
+                 for rate in criterion_rates(rows)]
+    parts = [
+        '<!DOCTYPE html>', '<html lang="en"><head><meta charset="utf-8">',
+        f'<title>Sweep {esc(sweep_name)}</title><style>{_STYLE}</style></head><body>',
+        f'<h1>Sweep {esc(sweep_name)}</h1>']
+    if description:
+        parts.append(f'<p>{esc(description)}</p>')
+    parts += [f'<p>{esc(_status_counts(rows))}. A variant fails when its verdict is not the '
+              'expected one or it could not be judged (ERROR).</p>',
+              '<h2>Failure rates</h2>',
+              _html_table(('criterion', 'failures/n', 'rate', '95 % CI (Wilson)'), rate_rows,
+                          numeric=(1, 2, 3)),
+              '<h2>Failure rate along each axis</h2>',
+              f'<img src="data:image/png;base64,{png}" alt="failure rate along each axis">']
+    for axis in axes:
+        rates = axis_rates(rows, axis)
+        if rates:
+            parts.append(f'<h3>{esc(axis)}</h3>')
+            parts.append(_html_table(
+                ('value', 'failures/n', 'rate', '95 % CI'),
+                [(esc(label), f'{rate.failures}/{rate.n}', _percent(rate.rate),
+                  _interval(rate)) for label, rate in rates], numeric=(1, 2, 3)))
+
+    worst = worst_variants(rows, worst_count)
+    parts.append('<h2>Worst variants</h2>')
+    if not worst:
+        parts.append('<p>No variant failed.</p>')
+    else:
+        worst_rows = []
+        for row in worst:
+            detail = row.error if row.status == 'ERROR' else row.first_failure
+            links = ' '.join(f'<a href="{esc(link)}">{esc(name)}</a>'
+                             for name, link in _run_links(row, out_dir, base))
+            worst_rows.append((
+                esc(row.name), f'<span class="bad">{esc(row.status)}</span>',
+                '<br>'.join(esc(line) for line in _values_text(row).splitlines()) or '-',
+                esc(', '.join(failed_criteria(row))) or '-',
+                esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-'))
+        parts.append(_html_table(('variant', 'status', 'values', 'failed criteria',
+                                  'first failure / error', 'run'), worst_rows))
+    parts.append('</body></html>')
+    path = out_dir / 'report.html'
+    path.write_text('\n'.join(parts) + '\n', encoding='utf-8')
+    return path

@@ -1,0 +1,481 @@
+r"""
+run_sweep: run every variant of a sweep file and report failure rates.
+
+Usage::
+
+    ./mecanum run mecanum_bringup run_sweep src/mecanum_bringup/sweeps/tour_variants.yaml \\
+        --jobs 2 [--out reports/sweeps/NAME] [--ray ADDRESS] [--real-time-factor max]
+    ./mecanum run mecanum_bringup compare_sweeps reports/sweeps/A reports/sweeps/B
+
+Each variant (:mod:`mecanum_bringup.sweep`) is a scenario run exactly as run_scenarios
+runs one: the whole simulated robot, isolated (its own ROS domain, processes and run
+folder ``DIR/runs/NAME/``), judged, in lockstep at the real-time factor 'max' unless told
+otherwise. Every finished variant becomes one row of ``DIR/results.sqlite``
+(:mod:`mecanum_bringup.sweep_store`) at once, so a sweep that is stopped (Ctrl-C, SIGTERM,
+a crash, a reboot) and started again runs only the variants without a row; an
+interrupted run leaves no row and runs again. At the end (also after Ctrl-C) it writes
+``DIR/report.html``, ``DIR/rates.png`` and ``DIR/junit.xml`` and prints the failure rate
+of every criterion with its Wilson 95 % interval.
+
+``--jobs N`` runs N variants at once on this machine (worker processes). ``--ray
+ADDRESS`` runs them as Ray tasks on a cluster (``auto``, ``ray://host:10001``, or a
+``host:port`` of ``ray start --head``): each task is one whole variant run on one node
+(1 CPU), its row streamed back into the store as it finishes; Ray runs the task again
+elsewhere when its worker or node dies (``--ray-retries``, 3). The run folders stay on
+the node that ran the variant (the row's worker names it). Ray is an extra: installed
+by ``make setup``; the sweep imports it only with --ray.
+
+Exit codes: 0 every variant has a row (whatever their verdicts: a sweep measures rates),
+1 interrupted or some variants could not run, 2 invalid sweep file or store.
+"""
+
+import argparse
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+import json
+import math
+import multiprocessing
+import os
+from pathlib import Path
+import shutil
+import signal
+import socket
+import sys
+import time
+from typing import Any, Callable, Dict, List, Optional, Sequence, TextIO
+
+from mecanum_bringup.scenario import load_scenario, ScenarioError
+from mecanum_bringup.scenario_runner import (
+    interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, run_scenario,
+    RunOptions, stopping_cleanly_on_signals)
+from mecanum_bringup.sweep import (
+    load_sweep, Sweep, SweepError, Variant, variant_documents, variants)
+from mecanum_bringup.sweep_store import ResultsStore, StoreError, VariantRow
+import yaml
+
+
+@dataclass
+class PreparedVariant:
+    """A variant with the scenario (and world) documents it runs; checked by loading."""
+
+    variant: Variant
+    name: str
+    scenario_document: Dict[str, Any]
+    world_document: Optional[Dict[str, Any]]
+
+
+def prepare(sweep: Sweep, check_dir: Path) -> List[PreparedVariant]:
+    """
+    Return every variant's documents, each checked as a scenario file would be.
+
+    The documents are written under check_dir and loaded with load_scenario, so a
+    variant that is not a valid scenario (e.g. a spawn in a wall) raises SweepError
+    naming the variant and its values, before anything runs.
+    """
+    prepared = []
+    for variant in variants(sweep):
+        name = variant.name(sweep.name)
+        world_source = None
+        if 'person' in variant.values:
+            world_source = _world_document(sweep, variant)
+        scenario_doc, world_doc = variant_documents(sweep, variant, world_source)
+        _absolute_paths(scenario_doc, sweep.scenario_file.parent)
+        try:
+            write_variant_files(check_dir / name, scenario_doc, world_doc)
+        except ScenarioError as error:
+            raise SweepError(f'{sweep.source.name}: variant {variant.index} '
+                             f'({variant.describe()}) is not a valid scenario: {error}'
+                             ) from None
+        prepared.append(PreparedVariant(variant, name, scenario_doc, world_doc))
+    return prepared
+
+
+def _world_document(sweep: Sweep, variant: Variant) -> Dict[str, Any]:
+    """Return the world file document of the variant's world (map path made absolute)."""
+    from robot_simulation.world import find_world, WorldError
+    value = variant.values.get('world', sweep.scenario_document['scenario'].get('world'))
+    path = Path(str(value))
+    if not path.is_absolute() and ('/' in str(value) or str(value).endswith('.yaml')):
+        path = sweep.scenario_file.parent / path
+    try:
+        path = path if path.is_file() else find_world(str(value))
+    except WorldError as error:
+        raise SweepError(f'{sweep.source.name}: variant {variant.index}: {error}') from None
+    document = yaml.safe_load(path.read_text(encoding='utf-8'))
+    world = document.get('world', {}) if isinstance(document, dict) else {}
+    world.setdefault('name', path.stem)
+    map_value = world.get('map')
+    if isinstance(map_value, str) and not map_value.startswith('package://') \
+            and not Path(map_value).is_absolute():
+        world['map'] = str((path.parent / map_value).resolve())
+    return document
+
+
+def _absolute_paths(scenario_doc: Dict[str, Any], folder: Path) -> None:
+    """Make the scenario's world and map paths absolute (the variant lives elsewhere)."""
+    scenario = scenario_doc['scenario']
+    for key in ('world', 'map'):
+        value = scenario.get(key)
+        if isinstance(value, str) and ('/' in value or value.endswith(('.yaml', '.yml'))) \
+                and not value.startswith('package://') and not Path(value).is_absolute():
+            scenario[key] = str((folder / value).resolve())
+
+
+def write_variant_files(folder: Path, scenario_doc: Dict[str, Any],
+                        world_doc: Optional[Dict[str, Any]]):
+    """Write a variant's scenario.yaml (and variant_world.yaml) into folder; load it."""
+    folder = folder.resolve()
+    folder.mkdir(parents=True, exist_ok=True)
+    scenario_doc = json.loads(json.dumps(scenario_doc))   # a copy, plain types
+    if world_doc is not None:
+        world_file = folder / 'variant_world.yaml'
+        world_file.write_text(yaml.safe_dump(world_doc, sort_keys=False), encoding='utf-8')
+        scenario_doc['scenario']['world'] = str(world_file)
+    path = folder / 'scenario.yaml'
+    path.write_text(yaml.safe_dump(scenario_doc, sort_keys=False), encoding='utf-8')
+    return load_scenario(path)
+
+
+def run_variant(index: int, name: str, values: Dict[str, Any], scenario_doc: Dict[str, Any],
+                world_doc: Optional[Dict[str, Any]], out_dir: str,
+                options: Dict[str, Any]) -> Optional[VariantRow]:
+    """
+    Run one variant isolated and return its row (None: interrupted, so no result).
+
+    A plain function of plain arguments, so that it runs the same in this process, in a
+    --jobs worker and as a Ray task on another node; options: real_time_factor (0 =
+    max), record, lockstep.
+    """
+    runs = Path(out_dir) / 'runs'
+    shutil.rmtree(runs / name, ignore_errors=True)   # what an interrupted attempt left
+    scenario = write_variant_files(runs / name, scenario_doc, world_doc)
+    result = run_scenario(scenario, RunOptions(
+        runs, real_time_factor=options.get('real_time_factor', 0.0),
+        record=bool(options.get('record', False)),
+        lockstep=bool(options.get('lockstep', True))))
+    if INTERRUPTED.is_set():
+        return None
+    verdict = result.verdict
+    first = verdict.first_failure if verdict else None
+    return VariantRow(
+        index=index, name=name, values=values, status=result.status,
+        verdict=verdict.verdict if verdict else None, expected=result.expected,
+        criteria={c.name: bool(c.passed) for c in verdict.criteria} if verdict else {},
+        first_failure=first.detail if first else '',
+        sim_time_s=_finite(result.sim_time_s), wall_time_s=_finite(result.wall_time_s),
+        run_dir=str(runs / name), error=result.error, worker=_worker_name(),
+        finished_at=time.time())
+
+
+def _worker_name() -> str:
+    """Return where the variant ran: host:pid, plus the Ray node id in a Ray task."""
+    name = f'{socket.gethostname()}:{os.getpid()}'
+    ray = sys.modules.get('ray')
+    if ray is not None and ray.is_initialized():
+        name += f' ray node {ray.get_runtime_context().get_node_id()[:12]}'
+    return name
+
+
+def _finite(value: Optional[float]) -> Optional[float]:
+    return value if value is not None and math.isfinite(value) else None
+
+
+# --- progress ------------------------------------------------------------------------
+
+class ProgressBar:
+    """A progress line with the ETA: redrawn in place on a terminal, else one per variant."""
+
+    def __init__(self, total: int, already_done: int, stream: TextIO = sys.stderr):
+        self.total = total
+        self.done = already_done
+        self.failed = 0
+        self.started = time.monotonic()
+        self.finished_here = 0
+        self.stream = stream
+        self.tty = stream.isatty()
+
+    def advance(self, row: VariantRow) -> None:
+        """Count a finished variant and redraw."""
+        self.done += 1
+        self.finished_here += 1
+        self.failed += row.failed
+        self.draw(f'{row.name}: {row.status}')
+
+    def line(self, last: str = '') -> str:
+        """Return the progress text."""
+        width = 24
+        filled = int(width * self.done / self.total) if self.total else width
+        elapsed = time.monotonic() - self.started
+        remaining = self.total - self.done
+        if self.finished_here and remaining:
+            eta = f'ETA {_clock(elapsed / self.finished_here * remaining)}'
+        else:
+            eta = 'ETA -' if remaining else 'done'
+        text = (f'[{"#" * filled}{"." * (width - filled)}] {self.done}/{self.total} '
+                f'({self.failed} failed) {_clock(elapsed)} elapsed, {eta}')
+        return f'{text}  {last}' if last else text
+
+    def draw(self, last: str = '') -> None:
+        """Print the progress line."""
+        if self.tty:
+            self.stream.write('\r\033[K' + self.line(last))
+        else:
+            self.stream.write(self.line(last) + '\n')
+        self.stream.flush()
+
+    def close(self) -> None:
+        """End the line on a terminal."""
+        if self.tty:
+            self.stream.write('\n')
+            self.stream.flush()
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    return f'{hours}:{rest // 60:02d}:{rest % 60:02d}' if hours else \
+        f'{rest // 60}:{rest % 60:02d}'
+
+
+# --- running -------------------------------------------------------------------------
+
+def _arguments(item: PreparedVariant, out_dir: Path, options: Dict[str, Any]) -> tuple:
+    return (item.variant.index, item.name, item.variant.values, item.scenario_document,
+            item.world_document, str(out_dir), options)
+
+
+def _worker_init() -> None:
+    """Set up a --jobs worker: Ctrl-C or SIGTERM end its run cleanly (no row)."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, interrupt)
+
+
+def run_local(todo: Sequence[PreparedVariant], out_dir: Path, options: Dict[str, Any],
+              jobs: int, on_row: Callable[[VariantRow], None],
+              say: Callable[[str], None]) -> List[str]:
+    """Run the variants jobs at once in worker processes; return why some did not run."""
+    problems: List[str] = []
+    if jobs <= 1:
+        for item in todo:
+            if INTERRUPTED.is_set():
+                break
+            row = run_variant(*_arguments(item, out_dir, options))
+            if row is not None:
+                on_row(row)
+        return problems
+    # spawn: a fresh interpreter per worker (no forked rclpy or reader threads).
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context('spawn'),
+                             initializer=_worker_init) as pool:
+        futures = {pool.submit(run_variant, *_arguments(item, out_dir, options)): item
+                   for item in todo}
+        pending = set(futures)
+        cancelled = False
+        while pending:
+            finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+            for future in finished:
+                if future.cancelled():
+                    continue
+                error = future.exception()
+                if error is not None:
+                    problems.append(f'{futures[future].name}: worker error: '
+                                    f'{type(error).__name__}: {error}')
+                elif future.result() is not None:
+                    on_row(future.result())
+            if INTERRUPTED.is_set() and not cancelled:
+                cancelled = True
+                for future in pending:
+                    future.cancel()
+                for worker in multiprocessing.active_children():
+                    os.kill(worker.pid, signal.SIGTERM)
+    return problems
+
+
+def run_on_ray(address: str, todo: Sequence[PreparedVariant], out_dir: Path,
+               options: Dict[str, Any], retries: int, on_row: Callable[[VariantRow], None],
+               say: Callable[[str], None]) -> List[str]:
+    """Run the variants as Ray tasks (1 CPU each) on the cluster at address."""
+    try:
+        import ray
+    except ImportError:
+        raise SystemExit('run_sweep: --ray needs Ray (pip install -r '
+                         'requirements/ros-jazzy-pip.py3XX.lock.txt, as make setup does)')
+    if not ray.is_initialized():
+        ray.init(address=address, log_to_driver=False,
+                 runtime_env={'env_vars': _ros_environment()})
+    resources = ray.cluster_resources()
+    say(f'Ray cluster at {address}: {len(ray.nodes())} node(s), '
+        f'{resources.get("CPU", 0):g} CPUs')
+    # By reference to the installed module (also when this file runs as __main__, whose
+    # functions Ray would pickle by value, with their globals).
+    from mecanum_bringup import sweep_runner
+    task = ray.remote(num_cpus=1, max_retries=retries)(sweep_runner.run_variant)
+    refs = {task.remote(*_arguments(item, out_dir, options)): item for item in todo}
+    problems: List[str] = []
+    pending = list(refs)
+    cancelled = False
+    while pending:
+        finished, pending = ray.wait(pending, num_returns=1, timeout=0.2)
+        for ref in finished:
+            try:
+                row = ray.get(ref)
+            except (ray.exceptions.TaskCancelledError, ray.exceptions.WorkerCrashedError,
+                    ray.exceptions.NodeDiedError) as error:
+                problems.append(f'{refs[ref].name}: {type(error).__name__}')
+                continue
+            except ray.exceptions.RayError as error:
+                problems.append(f'{refs[ref].name}: {type(error).__name__}: '
+                                f'{str(error).splitlines()[0] if str(error) else ""}')
+                continue
+            if row is not None:
+                on_row(row)
+        if INTERRUPTED.is_set() and not cancelled:
+            cancelled = True
+            for ref in pending:
+                ray.cancel(ref)
+    return problems
+
+
+def _ros_environment() -> Dict[str, str]:
+    """Return the variables a Ray worker needs to run the ROS workspace like this process."""
+    names = ('AMENT_PREFIX_PATH', 'PYTHONPATH', 'LD_LIBRARY_PATH', 'PATH', 'ROS_DISTRO',
+             'ROS_VERSION', 'ROS_PYTHON_VERSION', 'RMW_IMPLEMENTATION', 'COLCON_PREFIX_PATH')
+    return {name: os.environ[name] for name in names if name in os.environ}
+
+
+def run_sweep(sweep: Sweep, out_dir: Path, jobs: int = 1, ray_address: Optional[str] = None,
+              options: Optional[Dict[str, Any]] = None, retries: int = 3,
+              say: Callable[[str], None] = print, progress_stream: TextIO = sys.stderr
+              ) -> Dict[str, Any]:
+    """
+    Run the sweep's variants that have no row yet; return a summary dict.
+
+    The summary: total, done (rows), ran (this time), skipped (rows from before),
+    problems (variants that could not run), interrupted. Raises SweepError or StoreError
+    for an invalid sweep or a store of another sweep.
+    """
+    options = dict(options or {'real_time_factor': 0.0, 'record': False, 'lockstep': True})
+    out_dir.mkdir(parents=True, exist_ok=True)
+    prepared = prepare(sweep, out_dir / 'runs')
+    with ResultsStore(out_dir / 'results.sqlite', sweep.name, sweep.fingerprint) as store:
+        done_before = store.done_indices()
+        todo = [item for item in prepared if item.variant.index not in done_before]
+        say(f'{sweep.name}: {len(prepared)} variants, {len(done_before)} done before, '
+            f'{len(todo)} to run ' + (f'on Ray at {ray_address}' if ray_address
+                                      else f'{jobs} at once') + f'; results in {store.path}')
+        bar = ProgressBar(len(prepared), len(done_before), progress_stream)
+        ran = []
+
+        def on_row(row: VariantRow) -> None:
+            store.add(row)
+            ran.append(row)
+            bar.advance(row)
+
+        if todo:
+            bar.draw()
+            with stopping_cleanly_on_signals():
+                if ray_address:
+                    problems = run_on_ray(ray_address, todo, out_dir, options, retries,
+                                          on_row, say)
+                else:
+                    problems = run_local(todo, out_dir, options, jobs, on_row, say)
+            bar.close()
+        else:
+            problems = []
+        rows = store.rows()
+    write_outputs(sweep, rows, out_dir, say)
+    return {'total': len(prepared), 'done': len(rows), 'ran': len(ran),
+            'skipped': len(done_before), 'problems': problems,
+            'interrupted': interrupted_by() if INTERRUPTED.is_set() else None}
+
+
+def write_outputs(sweep: Sweep, rows: List[VariantRow], out_dir: Path,
+                  say: Callable[[str], None]) -> None:
+    """Write the report (HTML, PNG, JUnit) and print the rates table."""
+    from mecanum_bringup.sweep_report import rates_table, write_report
+    if not rows:
+        say('no finished variant yet: no report')
+        return
+    html = write_report(rows, sweep.name, out_dir, list(sweep.axes), sweep.description)
+    say(rates_table(rows))
+    say(f'report: {html}')
+
+
+# --- the command lines ---------------------------------------------------------------
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Run a sweep file (see the module docstring); return the exit code."""
+    parser = argparse.ArgumentParser(
+        prog='run_sweep', description='Run every variant of a sweep file with the simulated '
+        'robot and report failure rates with 95 %% intervals.')
+    parser.add_argument('sweep_file', help='the sweep file (YAML, see mecanum_bringup.sweep)')
+    parser.add_argument('--out', help='results folder (default reports/sweeps/NAME); '
+                        'run again with the same folder to resume')
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument('--jobs', type=int, default=1,
+                       help='variants at once on this machine (default 1)')
+    where.add_argument('--ray', metavar='ADDRESS',
+                       help="run on a Ray cluster: 'auto', host:port or ray://host:10001")
+    parser.add_argument('--ray-retries', type=int, default=3,
+                        help='times Ray runs a task again when its worker or node dies')
+    parser.add_argument('--real-time-factor', type=parse_real_time_factor, default=0.0,
+                        help="a number, or 'max' (default: as fast as the stack answers)")
+    parser.add_argument('--record', action='store_true',
+                        help='record every topic of every run (DIR/runs/NAME/bag)')
+    parser.add_argument('--quiet', action='store_true', help='no progress line')
+    args = parser.parse_args(argv)
+    if args.jobs < 1:
+        parser.error(f'--jobs must be at least 1, got {args.jobs}')
+    try:
+        sweep = load_sweep(args.sweep_file)
+    except SweepError as error:
+        print(f'run_sweep: {error}', file=sys.stderr)
+        return 2
+    out_dir = Path(args.out or Path('reports') / 'sweeps' / sweep.name).resolve()
+    stream = open(os.devnull, 'w') if args.quiet else sys.stderr
+    try:
+        summary = run_sweep(sweep, out_dir, args.jobs, args.ray,
+                            {'real_time_factor': args.real_time_factor,
+                             'record': args.record, 'lockstep': True},
+                            args.ray_retries, progress_stream=stream)
+    except (SweepError, StoreError) as error:
+        print(f'run_sweep: {error}', file=sys.stderr)
+        return 2
+    finally:
+        if args.quiet:
+            stream.close()
+    for problem in summary['problems']:
+        print(f'run_sweep: not run: {problem}', file=sys.stderr)
+    print(f'{summary["done"]} of {summary["total"]} variants done ({summary["ran"]} run now, '
+          f'{summary["skipped"]} from before)'
+          + (f'; interrupted ({summary["interrupted"]}): run the same command to resume'
+             if summary['interrupted'] else ''))
+    return 0 if summary['done'] == summary['total'] else 1
+
+
+def compare_main(argv: Optional[Sequence[str]] = None) -> int:
+    """Compare two sweeps' failure rates (before and after a change); return the exit code."""
+    from mecanum_bringup.sweep_report import compare_table
+    from mecanum_bringup.sweep_stats import compare
+    from mecanum_bringup.sweep_store import read_rows
+    parser = argparse.ArgumentParser(
+        prog='compare_sweeps', description='Say which failure rates changed between two '
+        'sweeps beyond their 95 %% intervals (A: before, B: after).')
+    parser.add_argument('before', help='results folder (or results.sqlite) of sweep A')
+    parser.add_argument('after', help='results folder (or results.sqlite) of sweep B')
+    args = parser.parse_args(argv)
+    try:
+        rows = [read_rows(_store_path(Path(path))) for path in (args.before, args.after)]
+    except StoreError as error:
+        print(f'compare_sweeps: {error}', file=sys.stderr)
+        return 2
+    changes = compare(*rows)
+    print(compare_table(changes))
+    return 1 if any(change.verdict == 'worse' for change in changes) else 0
+
+
+def _store_path(path: Path) -> Path:
+    return path / 'results.sqlite' if path.is_dir() else path
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""
+The results store of a sweep: one SQLite row per finished variant (pure, no ROS).
+
+A sweep writes each variant's row the moment it finishes, in its own transaction, so a
+sweep that is killed keeps every finished run and, started again, runs only the others.
+The store also keeps what fixes the variants (the sweep's fingerprint): a store made by
+another sweep file, or by this one after its axes changed, is refused rather than mixed.
+
+Tables::
+
+    sweep(key TEXT PRIMARY KEY, value TEXT)      -- name, fingerprint, created_at
+    variants(idx INTEGER PRIMARY KEY, name TEXT, values_json TEXT, status TEXT,
+             verdict TEXT, expected TEXT, criteria_json TEXT, first_failure TEXT,
+             sim_time_s REAL, wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT,
+             finished_at REAL)
+
+``status`` is the scenario runner's: 'OK' (verdict as expected), 'UNEXPECTED' or
+'ERROR' (no verdict: the run could not be judged). ``criteria_json`` maps each criterion
+name ('step 1', 'no_collision', ...) to whether it passed.
+"""
+
+from dataclasses import dataclass, field
+import json
+from pathlib import Path
+import sqlite3
+import time
+from typing import Any, Dict, Iterable, List, Optional, Union
+
+PathLike = Union[str, Path]
+SCHEMA_VERSION = '1'
+
+
+class StoreError(RuntimeError):
+    """The store cannot be used for this sweep (another sweep's, or not a sweep store)."""
+
+
+@dataclass
+class VariantRow:
+    """One finished variant, as stored."""
+
+    index: int
+    name: str
+    values: Dict[str, Any]
+    status: str                     # OK | UNEXPECTED | ERROR
+    verdict: Optional[str]          # pass | fail | None (not judged)
+    expected: str                   # pass | fail
+    criteria: Dict[str, bool] = field(default_factory=dict)
+    first_failure: str = ''
+    sim_time_s: Optional[float] = None
+    wall_time_s: Optional[float] = None
+    run_dir: str = ''
+    error: str = ''
+    worker: str = ''
+    finished_at: float = 0.0
+
+    @property
+    def failed(self) -> bool:
+        """Return True when the run's verdict is not the expected one (or no verdict)."""
+        return self.status != 'OK'
+
+
+_COLUMNS = ('idx', 'name', 'values_json', 'status', 'verdict', 'expected', 'criteria_json',
+            'first_failure', 'sim_time_s', 'wall_time_s', 'run_dir', 'error', 'worker',
+            'finished_at')
+
+
+class ResultsStore:
+    """A sweep's SQLite store; rows are written one transaction each (WAL journal)."""
+
+    def __init__(self, path: PathLike, sweep_name: str, fingerprint: str):
+        """Open (or create) the store; raise StoreError if it belongs to another sweep."""
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self._db = sqlite3.connect(str(self.path), timeout=30.0)
+            self._db.execute('PRAGMA journal_mode=WAL')
+            self._db.execute('PRAGMA synchronous=NORMAL')
+            with self._db:
+                self._db.execute('CREATE TABLE IF NOT EXISTS sweep '
+                                 '(key TEXT PRIMARY KEY, value TEXT)')
+                self._db.execute(
+                    'CREATE TABLE IF NOT EXISTS variants (idx INTEGER PRIMARY KEY, name TEXT, '
+                    'values_json TEXT, status TEXT, verdict TEXT, expected TEXT, '
+                    'criteria_json TEXT, first_failure TEXT, sim_time_s REAL, '
+                    'wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT, '
+                    'finished_at REAL)')
+                meta = dict(self._db.execute('SELECT key, value FROM sweep'))
+                if not meta:
+                    self._db.executemany('INSERT INTO sweep VALUES (?, ?)', [
+                        ('schema', SCHEMA_VERSION), ('name', sweep_name),
+                        ('fingerprint', fingerprint), ('created_at', repr(time.time()))])
+                    meta = {'name': sweep_name, 'fingerprint': fingerprint}
+        except sqlite3.DatabaseError as error:
+            raise StoreError(f'{self.path}: not a sweep results store ({error})') from None
+        if meta.get('name') != sweep_name or meta.get('fingerprint') != fingerprint:
+            self._db.close()
+            raise StoreError(
+                f'{self.path} holds the results of another sweep ({meta.get("name")!r}, or '
+                'the same sweep with other axes, samples or seed): give this sweep another '
+                '--out folder, or delete the store to start again')
+
+    def close(self) -> None:
+        """Close the database."""
+        self._db.close()
+
+    def __enter__(self) -> 'ResultsStore':
+        """Return the open store."""
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Close the store."""
+        self.close()
+
+    def add(self, row: VariantRow) -> None:
+        """Write one finished variant (replacing an earlier row of the same index)."""
+        with self._db:
+            self._db.execute(
+                f'INSERT OR REPLACE INTO variants ({", ".join(_COLUMNS)}) VALUES '
+                f'({", ".join("?" * len(_COLUMNS))})',
+                (row.index, row.name, json.dumps(row.values, sort_keys=True), row.status,
+                 row.verdict, row.expected, json.dumps(row.criteria), row.first_failure,
+                 row.sim_time_s, row.wall_time_s, row.run_dir, row.error, row.worker,
+                 row.finished_at or time.time()))
+
+    def done_indices(self) -> set:
+        """Return the indices of the variants that have a row."""
+        return {index for (index,) in self._db.execute('SELECT idx FROM variants')}
+
+    def rows(self) -> List[VariantRow]:
+        """Return every row, by index."""
+        cursor = self._db.execute(f'SELECT {", ".join(_COLUMNS)} FROM variants ORDER BY idx')
+        return [_row(record) for record in cursor]
+
+
+def read_rows(path: PathLike) -> List[VariantRow]:
+    """Return the rows of a store file (read only; for reports and compare)."""
+    path = Path(path)
+    if not path.is_file():
+        raise StoreError(f'{path}: no such results store')
+    try:
+        db = sqlite3.connect(f'file:{path}?mode=ro', uri=True)
+        try:
+            cursor = db.execute(f'SELECT {", ".join(_COLUMNS)} FROM variants ORDER BY idx')
+            return [_row(record) for record in cursor]
+        finally:
+            db.close()
+    except sqlite3.DatabaseError as error:
+        raise StoreError(f'{path}: not a sweep results store ({error})') from None
+
+
+def read_meta(path: PathLike) -> Dict[str, str]:
+    """Return the store's sweep table (name, fingerprint, created_at)."""
+    db = sqlite3.connect(f'file:{Path(path)}?mode=ro', uri=True)
+    try:
+        return dict(db.execute('SELECT key, value FROM sweep'))
+    except sqlite3.DatabaseError as error:
+        raise StoreError(f'{path}: not a sweep results store ({error})') from None
+    finally:
+        db.close()
+
+
+def _row(record: Iterable[Any]) -> VariantRow:
+    (index, name, values, status, verdict, expected, criteria, first_failure, sim_time_s,
+     wall_time_s, run_dir, error, worker, finished_at) = record
+    return VariantRow(index, name, json.loads(values), status, verdict, expected,
+                      json.loads(criteria or '{}'), first_failure or '', sim_time_s,
+                      wall_time_s, run_dir or '', error or '', worker or '', finished_at)

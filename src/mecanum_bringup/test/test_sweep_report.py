@@ -1,0 +1,166 @@
+"""Tests of the sweep reports: rate tables, the per-axis plot, JUnit XML and the HTML page."""
+
+import base64
+import re
+import xml.etree.ElementTree as ElementTree
+
+from matplotlib.image import imread
+from mecanum_bringup.sweep_report import (
+    compare_table, junit_xml, plot_axis_rates, rates_table, write_report)
+from mecanum_bringup.sweep_stats import compare
+from mecanum_bringup.sweep_store import read_rows, ResultsStore, VariantRow
+import pytest
+
+PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
+POSE = {'x': 2.95, 'y': 2.0, 'yaw': 0.0}
+
+
+def row(index, status, criteria=None, values=None, **extra):
+    verdict = {'OK': 'pass', 'UNEXPECTED': 'fail', 'ERROR': None}[status]
+    return VariantRow(index, f'tour_{index:04d}', values or {}, status, verdict, 'pass',
+                      criteria or {}, **extra)
+
+
+@pytest.fixture
+def rows():
+    return [
+        row(0, 'OK', {'step 1': True, 'step 2': True, 'no_collision': True},
+            {'seed': 0, 'world': 'apartment', 'spawn': POSE}, wall_time_s=40.0,
+            run_dir='runs/tour_0000'),
+        row(1, 'UNEXPECTED', {'step 1': True, 'step 2': False, 'no_collision': True},
+            {'seed': 1, 'world': 'apartment', 'spawn': POSE}, wall_time_s=50.5,
+            first_failure='step 2 goal <kitchen> & "sink": aborted', run_dir='runs/tour_0001'),
+        row(2, 'ERROR', {}, {'seed': 2, 'world': 'office', 'spawn': POSE}, wall_time_s=3.0,
+            error='office.yaml: spawn in a wall <x=1>\x1b[0m'),
+        row(3, 'UNEXPECTED', {'step 1': False, 'step 2': False, 'no_collision': False},
+            {'seed': 3, 'world': 'office', 'spawn': POSE}, wall_time_s=None,
+            first_failure='step 1 goal hall: timed out'),
+    ]
+
+
+def test_rates_table_lists_every_rate_with_its_interval(rows):
+    lines = rates_table(rows).splitlines()
+    assert lines[0].split() == ['criterion', 'failures/n', 'rate', '95', '%', 'CI']
+    assert set(lines[1]) == {'-', ' '}
+    body = [line.split() for line in lines[2:-1]]
+    # 3/4: Wilson (0.3006, 0.9544); 1/3: (0.0615, 0.7923); 2/3: (0.2077, 0.9385)
+    assert body == [
+        ['verdict', '3/4', '75.0', '%', '30.1-95.4', '%'],
+        ['step', '1', '1/3', '33.3', '%', '6.1-79.2', '%'],
+        ['step', '2', '2/3', '66.7', '%', '20.8-93.9', '%'],
+        ['no_collision', '1/3', '33.3', '%', '6.1-79.2', '%']]
+    assert lines[-1] == '4 variants: 1 as expected, 2 unexpected, 1 errors'
+    # Right-aligned numbers: every rate ends in the same column.
+    ends = {line.index(' %') for line in lines[2:-1]}
+    assert len(ends) == 1
+
+
+def test_compare_table_names_the_change(rows):
+    before = [row(i, 'OK', {'step 1': True}) for i in range(50)]
+    after = [row(i, 'UNEXPECTED' if i < 20 else 'OK', {'step 1': i >= 20}) for i in range(50)]
+    table = compare_table(compare(before, after))
+    lines = table.splitlines()
+    assert lines[0].split()[:3] == ['criterion', 'A', 'failures/n']
+    assert lines[2].startswith('verdict') and lines[2].endswith('worse')
+    assert '0/50' in lines[2] and '20/50' in lines[2] and '40.0 % (27.6-53.8 %)' in lines[2]
+    assert lines[-1] == '2 worse: verdict, step 1; 0 better (beyond the 95 % intervals)'
+    same = compare_table(compare(rows, rows)).splitlines()
+    assert all(line.endswith('same') for line in same[2:-1])
+    assert same[-1] == '0 worse; 0 better (beyond the 95 % intervals)'
+
+
+def test_plot_axis_rates_writes_one_png_subplot_per_axis(rows, tmp_path):
+    one, three = tmp_path / 'one.png', tmp_path / 'three.png'
+    plot_axis_rates(rows, ['world'], one)
+    plot_axis_rates(rows, ['world', 'spawn', 'person'], three)   # person: no rows
+    for path in (one, three):
+        assert path.read_bytes()[:8] == PNG_MAGIC
+    assert imread(str(three)).shape[0] > 2 * imread(str(one)).shape[0]
+    empty = tmp_path / 'empty.png'
+    plot_axis_rates([], [], empty)
+    assert empty.read_bytes()[:8] == PNG_MAGIC
+
+
+def test_junit_xml_has_a_testcase_per_variant(rows):
+    root = ElementTree.fromstring(junit_xml(rows, 'tour_robustness').encode('utf-8'))
+    assert root.tag == 'testsuite' and root.get('name') == 'tour_robustness'
+    assert (root.get('tests'), root.get('failures'), root.get('errors')) == ('4', '2', '1')
+    assert float(root.get('time')) == pytest.approx(93.5)
+    cases = root.findall('testcase')
+    assert [c.get('name') for c in cases] == [
+        'tour_0000', 'tour_0001', 'tour_0002', 'tour_0003']
+    assert {c.get('classname') for c in cases} == {'tour_robustness'}
+    assert cases[3].get('time') == '0.000'   # unknown wall time
+    assert cases[0].find('failure') is None and cases[0].find('error') is None
+    assert cases[1].find('failure').get('message') == \
+        'step 2 goal <kitchen> & "sink": aborted'
+    assert cases[1].find('error') is None
+    error = cases[2].find('error')
+    assert error.get('message').startswith('office.yaml: spawn in a wall <x=1>')
+    assert cases[2].find('failure') is None
+    properties = {p.get('name'): p.get('value') for p in cases[0].find('properties')}
+    assert properties == {'index': '0', 'status': 'OK', 'seed': '0', 'world': 'apartment',
+                          'spawn': '(2.95, 2.00, 0)'}
+    out = cases[3].find('system-out').text
+    assert 'world = office' in out and 'failed criteria: step 1, step 2, no_collision' in out
+
+
+def test_write_report_writes_the_page_the_plot_and_junit(rows, tmp_path):
+    out = tmp_path / 'sweeps' / 'tour'
+    # Run folders: one relative to out (all three files), one elsewhere (summary only).
+    run_1 = out / 'runs' / 'tour_0001'
+    (run_1 / 'bag').mkdir(parents=True)
+    (run_1 / 'run.png').write_bytes(PNG_MAGIC)
+    (run_1 / 'summary.json').write_text('{}')
+    run_3 = tmp_path / 'elsewhere' / 'tour_0003'
+    run_3.mkdir(parents=True)
+    (run_3 / 'summary.json').write_text('{}')
+    rows[3].run_dir = str(run_3)
+
+    page = write_report(rows, 'tour<robust>', out, ['world', 'spawn'],
+                        description='Friction & noise <on> the tour')
+    assert page == out / 'report.html'
+    text = page.read_text(encoding='utf-8')
+    assert '<title>Sweep tour&lt;robust&gt;</title>' in text
+    assert 'Friction &amp; noise &lt;on&gt; the tour' in text
+    assert '4 variants: 1 as expected, 2 unexpected, 1 errors' in text
+    assert 'step 2 goal &lt;kitchen&gt; &amp; &quot;sink&quot;: aborted' in text
+    assert '<kitchen>' not in text and '<robust>' not in text and '\x1b' not in text
+    # Every rate with its interval, and the per-axis numbers.
+    assert '<td>verdict</td><td class="num">3/4</td><td class="num">75.0 %</td>' \
+        '<td class="num">30.1-95.4 %</td>' in text
+    assert '<td>office</td><td class="num">2/2</td>' in text
+    # The embedded plot is the PNG written beside the page.
+    match = re.search(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"', text)
+    assert match
+    assert base64.b64decode(match.group(1)) == (out / 'rates.png').read_bytes()
+    assert (out / 'rates.png').read_bytes()[:8] == PNG_MAGIC
+    # The worst variants, ERROR first, with relative links to what exists.
+    worst = text[text.index('<h2>Worst variants</h2>'):]
+    assert worst.index('tour_0002') < worst.index('tour_0003') < worst.index('tour_0001')
+    assert 'tour_0000' not in worst
+    assert '<a href="runs/tour_0001/run.png">run.png</a>' in worst
+    assert '<a href="runs/tour_0001/summary.json">summary.json</a>' in worst
+    assert '<a href="runs/tour_0001/bag/">bag</a>' in worst
+    assert '<a href="../../elsewhere/tour_0003/summary.json">summary.json</a>' in worst
+    assert 'elsewhere/tour_0003/run.png' not in worst
+    # JUnit beside it.
+    root = ElementTree.parse(str(out / 'junit.xml')).getroot()
+    assert root.get('name') == 'tour<robust>' and len(root.findall('testcase')) == 4
+
+
+def test_write_report_without_failures_and_from_a_store(tmp_path):
+    store_path = tmp_path / 'out' / 'results.sqlite'
+    with ResultsStore(store_path, 'calm', 'fingerprint') as store:
+        for index in range(3):
+            store.add(row(index, 'OK', {'step 1': True},
+                          {'floor_friction_coefficient': 0.2 + 0.1 * index}))
+    stored = read_rows(store_path)
+    page = write_report(stored, 'calm', tmp_path / 'out', ['floor_friction_coefficient'])
+    text = page.read_text(encoding='utf-8')
+    assert '<p>No variant failed.</p>' in text
+    assert '3 variants: 3 as expected, 0 unexpected, 0 errors' in text
+    assert '<td>0.3</td><td class="num">0/3</td>' not in text   # one row per value
+    assert '<td>0.3</td><td class="num">0/1</td>' in text
+    root = ElementTree.parse(str(tmp_path / 'out' / 'junit.xml')).getroot()
+    assert (root.get('tests'), root.get('failures'), root.get('errors')) == ('3', '0', '0')

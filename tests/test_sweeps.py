@@ -1,0 +1,191 @@
+"""
+Integration: one 10-variant sweep gives the same per-variant verdicts run one at a time
+(killed half-way and resumed), two at a time, and on a 2-node Ray cluster that loses a
+node mid-sweep.
+
+The sweep (a grid: 2 seeds x 5 goal subsets) runs a scenario of quick refusals, in
+lockstep with the whole simulated robot per variant: goals in a wall and on the dining
+table are refused with GOAL_IN_OBSTACLE as the scenario expects, a goal outside the map
+is refused with another code, so every variant with that goal is UNEXPECTED. The
+verdicts are known in advance; each way of running must find exactly them, keep every
+finished row when killed, redo none, and leave no process behind.
+"""
+
+import json
+import os
+from pathlib import Path
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import time
+import uuid
+
+from mecanum_bringup.isolation import processes_with_variable
+import pytest
+
+pytestmark = pytest.mark.integration
+
+SCENARIO = """
+# Three refusals; the second expects the wrong code (the goal is outside the map).
+scenario:
+  name: refusals
+  world: apartment
+  steps:
+  - goal: {x: 6.0, y: 1.5, timeout_s: 10, expect: refused, error: GOAL_IN_OBSTACLE}
+  - goal: {x: 12.0, y: 3.0, timeout_s: 10, expect: refused, error: GOAL_IN_OBSTACLE}
+  - goal: {x: 7.6, y: 1.9, timeout_s: 10, expect: refused, error: GOAL_IN_OBSTACLE}
+  criteria: {max_duration_s: 30}
+"""
+SWEEP = """
+sweep:
+  name: refusals_sweep
+  scenario: refusals.yaml
+  axes:
+    seed: [0, 1]
+    goals: [[0], [1], [2], [0, 2], [1, 2]]
+"""
+GOALS = [[0], [1], [2], [0, 2], [1, 2]]
+#: The expected status of each variant (index = 5 * seed + goal subset).
+EXPECTED = {5 * seed + i: 'UNEXPECTED' if 1 in goals else 'OK'
+            for seed in (0, 1) for i, goals in enumerate(GOALS)}
+MARKER = 'MECANUM_SWEEP_TEST'
+
+
+def store_rows(out: Path) -> dict:
+    """Return {index: (status, finished_at, worker)} of a sweep's store (empty if none)."""
+    path = out / 'results.sqlite'
+    if not path.is_file():
+        return {}
+    db = sqlite3.connect(f'file:{path}?mode=ro', uri=True, timeout=30.0)
+    try:
+        return {index: (status, finished, worker) for index, status, finished, worker in
+                db.execute('SELECT idx, status, finished_at, worker FROM variants')}
+    except sqlite3.OperationalError:   # the table is not there yet
+        return {}
+    finally:
+        db.close()
+
+
+def wait_for_rows(out: Path, count: int, process: subprocess.Popen, timeout_s: float):
+    """Wait until the store has count rows (the sweep's own progress, not the clock)."""
+    deadline = time.monotonic() + timeout_s
+    while len(store_rows(out)) < count:
+        if process.poll() is not None:
+            raise AssertionError(f'run_sweep ended early ({process.returncode}): '
+                                 f'{process.communicate()[0]}')
+        assert time.monotonic() < deadline, f'fewer than {count} rows in {timeout_s} s'
+        time.sleep(0.5)
+
+
+def run_sweep(sweep: Path, out: Path, env: dict, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, '-m', 'mecanum_bringup.sweep_runner', str(sweep), '--out', str(out),
+         '--quiet', *extra], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True)
+
+
+def start_ray_cluster(ray_cluster, attempts: int = 3):
+    """
+    Start Ray's 2-node test cluster (1 CPU a node); return (cluster, second node).
+
+    Ray gives a starting node a fixed 30 s of wall time to register (ray/_private/node.py,
+    not configurable); on a loaded 2-core machine that can run out, so the start is tried
+    again (Ray's startup, not the system under test).
+    """
+    for attempt in range(1, attempts + 1):
+        cluster = None
+        try:
+            cluster = ray_cluster.Cluster(initialize_head=True,
+                                          head_node_args={'num_cpus': 1})
+            node = cluster.add_node(num_cpus=1)
+            cluster.wait_for_nodes()
+            return cluster, node
+        except Exception as error:  # noqa: B902 - Ray raises a bare Exception here
+            if cluster is not None:
+                cluster.shutdown()
+            if attempt == attempts or 'timed out during startup' not in str(error):
+                raise
+            print(f'Ray cluster start {attempt} failed ({error}); again')
+
+
+def statuses(out: Path) -> dict:
+    return {index: row[0] for index, row in store_rows(out).items()}
+
+
+@pytest.fixture
+def sweep_env(tmp_path, marked_env):
+    """Write the scenario and the sweep; return (sweep file, env, marker value)."""
+    (tmp_path / 'refusals.yaml').write_text(textwrap.dedent(SCENARIO))
+    sweep = tmp_path / 'sweep.yaml'
+    sweep.write_text(textwrap.dedent(SWEEP))
+    marker = uuid.uuid4().hex
+    env = dict(marked_env.env, **{MARKER: marker})
+    yield sweep, env, marker
+    left = processes_with_variable(MARKER, marker)
+    for pid in left:
+        os.kill(pid, signal.SIGKILL)
+    assert left == [], f'processes left running: {left}'
+
+
+@pytest.mark.long
+def test_the_same_verdicts_one_at_a_time_resumed_two_at_a_time_and_on_ray(
+        tmp_path, sweep_env, monkeypatch):
+    sweep, env, marker = sweep_env
+    # --jobs 1, stopped by Ctrl-C after 5 rows, then run again: the rest only.
+    one = tmp_path / 'jobs1'
+    process = run_sweep(sweep, one, env, '--jobs', '1')
+    wait_for_rows(one, 5, process, timeout_s=600)
+    process.send_signal(signal.SIGINT)
+    output = process.communicate(timeout=120)[0]
+    assert process.returncode == 1, output
+    assert 'interrupted (Ctrl-C): run the same command to resume' in output
+    first = store_rows(one)
+    assert 5 <= len(first) < 10, first
+    assert processes_with_variable(MARKER, marker) == [], 'a run survived the Ctrl-C'
+    process = run_sweep(sweep, one, env, '--jobs', '1')
+    output = process.communicate(timeout=900)[0]
+    assert process.returncode == 0, output
+    assert f'10 of 10 variants done ({10 - len(first)} run now, {len(first)} from before)' \
+        in output
+    rows = store_rows(one)
+    assert {i: rows[i] for i in first} == first, 'a finished variant was run again'
+    assert statuses(one) == EXPECTED
+    assert (one / 'report.html').is_file() and (one / 'junit.xml').is_file()
+
+    # --jobs 2: the same verdicts.
+    two = tmp_path / 'jobs2'
+    process = run_sweep(sweep, two, env, '--jobs', '2')
+    output = process.communicate(timeout=900)[0]
+    assert process.returncode == 0, output
+    assert statuses(two) == EXPECTED
+    # compare_sweeps: no rate changed beyond its interval (exit 1 would mean 'worse').
+    compared = subprocess.run(
+        [sys.executable, '-c', 'import sys; from mecanum_bringup.sweep_runner import '
+         'compare_main; sys.exit(compare_main(sys.argv[1:]))', str(one), str(two)],
+        env=env, capture_output=True, text=True, timeout=60)
+    assert compared.returncode == 0, compared.stdout + compared.stderr
+    assert 'verdict' in compared.stdout
+
+    # Ray: a 2-node cluster on this machine (Ray's own test cluster, 1 CPU a node); the
+    # second node dies while it runs a variant, Ray runs that variant again elsewhere.
+    ray_cluster = pytest.importorskip('ray.cluster_utils')
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)   # the cluster's workers get the ROS environment
+    cluster, doomed = start_ray_cluster(ray_cluster)
+    try:
+        on_ray = tmp_path / 'ray'
+        process = run_sweep(sweep, on_ray, env, '--ray', cluster.address)
+        wait_for_rows(on_ray, 2, process, timeout_s=600)
+        cluster.remove_node(doomed, allow_graceful=False)
+        output = process.communicate(timeout=900)[0]
+        assert process.returncode == 0, output
+        assert statuses(on_ray) == EXPECTED
+        workers = {row[2] for row in store_rows(on_ray).values()}
+        print(output, json.dumps(sorted(workers), indent=1))
+        assert len({worker.split(' ray node ')[-1] for worker in workers}) == 2, workers
+    finally:
+        import ray
+        ray.shutdown()
+        cluster.shutdown()
