@@ -6,7 +6,7 @@ PYTEST_ARGS ?=
 # of conftest.py; tests marked `alone` still run by themselves).
 TEST_WORKERS ?= auto
 
-.PHONY: setup demo scenarios test lint colcon-test bench docker-check clean
+.PHONY: setup demo scenarios test lint colcon-test bench docker-check clean firmware-flash
 
 setup:
 	@$(PYTHON) tools/bootstrap.py
@@ -30,6 +30,14 @@ colcon-test: setup
 	@./mecanum exec colcon --log-base log/colcon test --base-paths src --build-base build \
 	  --install-base install --event-handlers console_cohesion+
 	@./mecanum exec colcon test-result --test-result-base build --verbose
+
+# The ESP32 firmware (firmware/README.md): copy it, with board_params.py generated from
+# the robot config, to a board running MicroPython; then check it with
+# `./mecanum run mecanum_control board_check --port $(PORT)`. FLASH_ARGS: e.g. --no-reset.
+PORT ?= /dev/ttyUSB0
+FLASH_ARGS ?=
+firmware-flash: setup
+	@./mecanum exec python firmware/flash.py --port $(PORT) $(FLASH_ARGS)
 
 # Speed benchmarks (not tests: shared machines are noisy); each prints a table.
 bench: setup

@@ -13,6 +13,9 @@ Steps, each skipped when its inputs did not change since the last run:
    such as tf2_msgs that PyPI lacks), built with colcon into
    ``.venv/ros_overlay``. An apt ROS install never sees it.
 4. The workspace ``src/`` built with ``colcon build --symlink-install``.
+5. The firmware tests' MicroPython (``firmware/package-lock.json``: the WebAssembly
+   MicroPython 1.27 from npm), with ``npm ci`` when node and npm are installed;
+   skipped with a message otherwise (those tests are then skipped too).
 
 Only the standard library is used: this runs before the venv exists.
 Usage: ``python3 tools/bootstrap.py [--force]``.
@@ -273,6 +276,26 @@ def ensure_workspace(force: bool) -> None:
     say(f'workspace built in {time.monotonic() - started:.0f} s')
 
 
+def ensure_firmware_micropython() -> None:
+    """Install the pinned WebAssembly MicroPython for the firmware tests (npm ci)."""
+    firmware = ROOT / 'firmware'
+    lock = firmware / 'package-lock.json'
+    if not lock.exists():
+        return
+    if shutil.which('node') is None or shutil.which('npm') is None:
+        if read_stamp('firmware-npm') != 'no-node':
+            say('node/npm not found: the firmware tests under MicroPython will be skipped '
+                '(install Node.js 18 or later and run make setup again)')
+            write_stamp('firmware-npm', 'no-node')
+        return
+    digest = digest_of([lock, firmware / 'package.json'])
+    if read_stamp('firmware-npm') == digest and (firmware / 'node_modules').is_dir():
+        return
+    say('installing MicroPython (WebAssembly) for the firmware tests: npm ci in firmware/')
+    run_logged(['npm', 'ci', '--no-audit', '--no-fund'], 'npm-firmware', cwd=firmware)
+    write_stamp('firmware-npm', digest)
+
+
 def main() -> None:
     """Run every setup step that is not already done."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -287,6 +310,7 @@ def main() -> None:
         ensure_requirements()
         ensure_overlay()
         ensure_workspace(args.force)
+        ensure_firmware_micropython()
 
 
 if __name__ == '__main__':

@@ -41,6 +41,7 @@ setup(
             'encoder_reader = mecanum_control.encoder_reader:main',
             'hardware_interface = mecanum_control.hardware_interface:main',
             'board_emulator = mecanum_control.board_emulator:main',
+            'board_check = mecanum_control.board_check:main',
             'teleop_keyboard = mecanum_control.teleop_keyboard:main',
         ],
     },

@@ -1,5 +1,5 @@
 """
-Physics and firmware logic of the emulated ESP32 motor board (pure, no I/O, no clock).
+Physics of the robot under the emulated ESP32 motor board (pure, no I/O, no clock).
 
 Each wheel is a DC gear motor reduced to its first-order speed response: at a
 constant duty ``u`` (-1..1) the wheel speed tends to ``u * no_load_speed`` with time
@@ -8,18 +8,18 @@ update is the exact solution for a duty held over the step, so the step size onl
 limits the timing resolution. Encoder counts are what a 4x quadrature decoder
 counts: the wheel angle in whole counts, as a free-running signed 32-bit counter.
 
-The firmware part is the safety rule of the protocol: with no effort command for
-``command_timeout_ms`` the board zeroes every duty and raises COMMAND_TIMEOUT.
-Body motion (for the IMU) follows from the wheel speeds by forward kinematics;
-the board's IMU frame is aligned with base_link. Wheel order FL, FR, RL, RR.
+The firmware itself (command watchdog, faults, the serial protocol) is not here: the
+emulator runs the real firmware core (:mod:`mecanum_control.board_core`) on this
+model through :mod:`mecanum_control.board_sim`. Body motion (for the IMU) follows
+from the wheel speeds by forward kinematics; the board's IMU frame is aligned with
+base_link. Wheel order FL, FR, RL, RR.
 """
 
 from dataclasses import dataclass, field
 import math
 import random
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Tuple
 
-from mecanum_control.esp32_protocol import FaultFlags
 from mecanum_control.kinematics import forward_kinematics, MecanumGeometry
 
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -67,41 +67,14 @@ class Wheel:
         self.angle_rad += target * dt_s + (start - target) * motor.time_constant_s * (1 - decay)
 
 
-class FirmwareCommandRule:
-    """
-    The firmware's handling of effort commands, shared by every emulated board.
-
-    The host's efforts hold until ``command_timeout_ms`` passes without a new command;
-    then, and from boot until the first command, every duty is zero and
-    COMMAND_TIMEOUT is set (doc/esp32_protocol.md, 4.1). Subclasses provide the
-    attributes ``time_us``, ``efforts``, ``command_timeout_ms``, ``last_command_us``,
-    ``last_command_seq`` and ``faults``.
-    """
-
-    def command(self, efforts: Sequence[float], command_timeout_ms: int, seq: int) -> None:
-        """Apply the host's effort command: duty -1..1 per wheel, its timeout and sequence."""
-        self.efforts = [max(-1.0, min(1.0, float(e))) for e in efforts]
-        self.command_timeout_ms = command_timeout_ms
-        self.last_command_us = self.time_us
-        self.last_command_seq = seq
-        self.faults &= ~FaultFlags.COMMAND_TIMEOUT
-
-    def clear_faults(self, faults: FaultFlags) -> None:
-        """Clear latched fault bits the host asked to clear."""
-        self.faults &= ~faults
-
-    def apply_command_timeout(self) -> List[float]:
-        """Zero the duties once the command timed out (or none came yet); return them."""
-        if (self.last_command_us is None
-                or self.time_us - self.last_command_us > self.command_timeout_ms * 1000):
-            self.faults |= FaultFlags.COMMAND_TIMEOUT
-            self.efforts = [0.0] * 4
-        return self.efforts
-
-
 @dataclass
-class BoardModel(FirmwareCommandRule):
-    """The emulated board: four wheels, encoder counters, an IMU and the command timeout."""
+class BoardModel:
+    """
+    The emulated robot under the board: four wheels, their encoder counters and an IMU.
+
+    ``efforts`` are the duties -1..1 (FL, FR, RL, RR) the firmware applies (set by
+    :class:`mecanum_control.board_sim.SimulatedHardware`); ``step`` holds them.
+    """
 
     geometry: MecanumGeometry
     motor: MotorModel
@@ -112,10 +85,6 @@ class BoardModel(FirmwareCommandRule):
     time_us: int = 0
     wheels: List[Wheel] = field(default_factory=lambda: [Wheel() for _ in range(4)])
     efforts: List[float] = field(default_factory=lambda: [0.0] * 4)
-    command_timeout_ms: int = 250
-    last_command_us: Optional[int] = None
-    last_command_seq: int = 0
-    faults: FaultFlags = FaultFlags(0)
     tick_offset: int = 0
 
     def __post_init__(self) -> None:
@@ -124,11 +93,11 @@ class BoardModel(FirmwareCommandRule):
         self._body_accel = (0.0, 0.0)
 
     def step(self, dt_s: float) -> None:
-        """Advance time by dt_s: command timeout, motor response, body acceleration."""
+        """Advance time by dt_s with the efforts held: motor response, body acceleration."""
         if dt_s <= 0:
             return
         self.time_us += int(round(dt_s * 1e6))
-        for wheel, effort in zip(self.wheels, self.apply_command_timeout()):
+        for wheel, effort in zip(self.wheels, self.efforts):
             wheel.step(self.motor, effort, dt_s)
         velocity = forward_kinematics(self.geometry, [w.speed_rad_s for w in self.wheels])
         self._body_accel = ((velocity[0] - self._body_velocity[0]) / dt_s,

@@ -1,9 +1,12 @@
 """
-Serial wire protocol (version 1) between the host and the ESP32 motor/IMU board.
+Serial wire protocol (version 1) between the host and the ESP32 motor/IMU board: typed host API.
 
 Pure Python, no ROS. The full specification for firmware writers is
-``doc/esp32_protocol.md`` in this package; this module is the host-side
-reference implementation.
+``doc/esp32_protocol.md`` in this package. The bytes themselves (layouts, CRC, COBS,
+the frame decoder) are :mod:`mecanum_control.esp32_wire`, the one module the host
+and the board's MicroPython firmware both run; this module puts types on it:
+``MessageType`` and ``FaultFlags`` enums, one frozen dataclass per message, field
+checks that raise ``ProtocolError``, and the receive-side ``SequenceTracker``.
 
 Conventions:
 
@@ -30,12 +33,13 @@ from dataclasses import dataclass
 import enum
 import math
 import operator
-import struct
 from typing import Callable, Dict, List, Optional, Tuple, Type, Union
 
-PROTOCOL_VERSION = 1
-EFFORT_SCALE = 10000
-MAX_FRAME_BYTES = 64
+from mecanum_control import esp32_wire as wire
+
+PROTOCOL_VERSION = wire.PROTOCOL_VERSION
+EFFORT_SCALE = wire.EFFORT_SCALE
+MAX_FRAME_BYTES = wire.MAX_FRAME_BYTES
 """
 Bound on an encoded frame, COBS overhead and 0x00 delimiter included.
 
@@ -45,40 +49,37 @@ frame of another version from line noise. ``FrameDecoder`` discards a run of
 more than ``MAX_FRAME_BYTES - 1`` bytes without a 0x00.
 """
 
-FRAME_DELIMITER = b'\x00'
-HEADER_BYTES = 4
-CRC_BYTES = 2
-SEQ_MODULUS = 1 << 16
+FRAME_DELIMITER = wire.FRAME_DELIMITER
+HEADER_BYTES = wire.HEADER_BYTES
+CRC_BYTES = wire.CRC_BYTES
+SEQ_MODULUS = wire.SEQ_MODULUS
 _TIME_MODULUS = 1 << 32
-_U16_MAX = 0xFFFF
+_U16_MAX = wire.U16_MAX
 _FLOAT32_MAX = 3.4028234663852886e38
-
-_HEADER = struct.Struct('<BBH')
-_CRC = struct.Struct('<H')
 
 
 class MessageType(enum.IntEnum):
     """Message type byte; 0x01-0x7F travel host -> board, 0x81-0xFF board -> host."""
 
-    MOTOR_EFFORTS = 0x01
-    CLEAR_FAULTS = 0x02
-    ENCODER_TICKS = 0x81
-    IMU_SAMPLE = 0x82
-    BOARD_STATUS = 0x83
+    MOTOR_EFFORTS = wire.MOTOR_EFFORTS
+    CLEAR_FAULTS = wire.CLEAR_FAULTS
+    ENCODER_TICKS = wire.ENCODER_TICKS
+    IMU_SAMPLE = wire.IMU_SAMPLE
+    BOARD_STATUS = wire.BOARD_STATUS
 
 
 class FaultFlags(enum.IntFlag):
     """Fault bits of BOARD_STATUS (and of CLEAR_FAULTS, for the latched ones)."""
 
     NONE = 0
-    COMMAND_TIMEOUT = 0x0001
-    ESTOP_INPUT = 0x0002
-    ENCODER_FAULT = 0x0004
-    IMU_FAULT = 0x0008
-    LOW_BATTERY = 0x0010
-    MOTOR_DRIVER_FAULT = 0x0020
-    RX_ERRORS = 0x0040
-    BROWNOUT_RESET = 0x0080
+    COMMAND_TIMEOUT = wire.COMMAND_TIMEOUT
+    ESTOP_INPUT = wire.ESTOP_INPUT
+    ENCODER_FAULT = wire.ENCODER_FAULT
+    IMU_FAULT = wire.IMU_FAULT
+    LOW_BATTERY = wire.LOW_BATTERY
+    MOTOR_DRIVER_FAULT = wire.MOTOR_DRIVER_FAULT
+    RX_ERRORS = wire.RX_ERRORS
+    BROWNOUT_RESET = wire.BROWNOUT_RESET
 
 
 _FAULT_BITS: Tuple[FaultFlags, ...] = tuple(
@@ -176,21 +177,7 @@ class Frame:
     message: Message
 
 
-# --------------------------------------------------------------------------- CRC
-
-
-def _make_crc_table() -> Tuple[int, ...]:
-    table = []
-    for byte in range(256):
-        crc = byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
-            crc &= 0xFFFF
-        table.append(crc)
-    return tuple(table)
-
-
-_CRC_TABLE = _make_crc_table()
+# ---------------------------------------------------------------- CRC and COBS
 
 
 def crc16_ccitt(data: bytes) -> int:
@@ -200,13 +187,7 @@ def crc16_ccitt(data: bytes) -> int:
     Polynomial 0x1021, initial value 0xFFFF, no input/output reflection, no final
     XOR; the check value of ``b'123456789'`` is 0x29B1.
     """
-    crc = 0xFFFF
-    for byte in data:
-        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[(crc >> 8) ^ byte]
-    return crc
-
-
-# -------------------------------------------------------------------------- COBS
+    return wire.crc16_ccitt(data)
 
 
 def cobs_encode(data: bytes) -> bytes:
@@ -217,51 +198,20 @@ def cobs_encode(data: bytes) -> bytes:
     bytes long at most. A block of 254 non-zero bytes that ends the data is not
     followed by an extra 0x01 code byte.
     """
-    out = bytearray(b'\x01')
-    code_index = 0  # index of the open block's code byte
-    code = 1
-    for byte in data:
-        if byte:
-            out.append(byte)
-            code += 1
-        if not byte or code == 0xFF:
-            out[code_index] = code
-            code_index = len(out)
-            out.append(1)
-            code = 1
-    out[code_index] = code
-    if code == 1 and data and data[-1] != 0:
-        out.pop()  # empty block after a full block that ends the data: not needed
-    return bytes(out)
+    return wire.cobs_encode(bytes(data))
 
 
 def cobs_decode(data: bytes) -> bytes:
     """
     Undo ``cobs_encode`` (input without the 0x00 delimiter).
 
-    Raises ``ProtocolError`` on malformed input: empty input, a 0x00 byte, or a
-    code byte that points past the end.
+    Raises ``ProtocolError`` if the input is empty, holds a 0x00, or a code byte
+    points past the end. A redundant empty final block is accepted.
     """
-    if not data:
-        raise ProtocolError('COBS: empty input')
-    out = bytearray()
-    index = 0
-    length = len(data)
-    while index < length:
-        code = data[index]
-        if code == 0:
-            raise ProtocolError(f'COBS: zero byte at offset {index}')
-        end = index + code
-        if end > length:
-            raise ProtocolError(f'COBS: block at offset {index} runs past the end')
-        block = data[index + 1:end]
-        if 0 in block:
-            raise ProtocolError(f'COBS: zero byte in block at offset {index}')
-        out += block
-        index = end
-        if code < 0xFF and index < length:
-            out.append(0)
-    return bytes(out)
+    try:
+        return wire.cobs_decode(bytes(data))
+    except ValueError as exc:
+        raise ProtocolError(str(exc)) from None
 
 
 # ----------------------------------------------------------------- field helpers
@@ -331,11 +281,7 @@ def _pack_motor_efforts(message: MotorEfforts) -> Tuple[object, ...]:
 
 
 def _unpack_motor_efforts(fields: Tuple) -> MotorEfforts:
-    raw, timeout = fields[:4], fields[4]
-    if any(abs(value) > EFFORT_SCALE for value in raw):
-        raise ProtocolError(f'effort out of range: {raw}')
-    if timeout == 0:
-        raise ProtocolError('command_timeout_ms is 0')
+    raw, timeout = fields[:4], fields[4]   # esp32_wire.fields_valid checked the range
     efforts = tuple(value / EFFORT_SCALE for value in raw)
     return MotorEfforts(efforts, timeout)  # type: ignore[arg-type]
 
@@ -390,37 +336,25 @@ def _unpack_board_status(fields: Tuple) -> BoardStatus:
 class _Codec:
     message_type: MessageType
     message_class: Type
-    payload: struct.Struct
     pack: Callable[..., Tuple[object, ...]]
     unpack: Callable[[Tuple], Message]
 
 
 _CODECS: Tuple[_Codec, ...] = (
-    _Codec(MessageType.MOTOR_EFFORTS, MotorEfforts, struct.Struct('<4hH'),
-           _pack_motor_efforts, _unpack_motor_efforts),
-    _Codec(MessageType.CLEAR_FAULTS, ClearFaults, struct.Struct('<H'),
-           _pack_clear_faults, _unpack_clear_faults),
-    _Codec(MessageType.ENCODER_TICKS, EncoderTicks, struct.Struct('<I4i'),
-           _pack_encoder_ticks, _unpack_encoder_ticks),
-    _Codec(MessageType.IMU_SAMPLE, ImuSample, struct.Struct('<I6f'),
-           _pack_imu_sample, _unpack_imu_sample),
-    _Codec(MessageType.BOARD_STATUS, BoardStatus, struct.Struct('<IHHHH'),
-           _pack_board_status, _unpack_board_status),
+    _Codec(MessageType.MOTOR_EFFORTS, MotorEfforts, _pack_motor_efforts, _unpack_motor_efforts),
+    _Codec(MessageType.CLEAR_FAULTS, ClearFaults, _pack_clear_faults, _unpack_clear_faults),
+    _Codec(MessageType.ENCODER_TICKS, EncoderTicks, _pack_encoder_ticks, _unpack_encoder_ticks),
+    _Codec(MessageType.IMU_SAMPLE, ImuSample, _pack_imu_sample, _unpack_imu_sample),
+    _Codec(MessageType.BOARD_STATUS, BoardStatus, _pack_board_status, _unpack_board_status),
 )
 _CODEC_BY_TYPE: Dict[int, _Codec] = {int(codec.message_type): codec for codec in _CODECS}
 _CODEC_BY_CLASS: Dict[type, _Codec] = {codec.message_class: codec for codec in _CODECS}
 
 PAYLOAD_BYTES: Dict[MessageType, int] = {
-    codec.message_type: codec.payload.size for codec in _CODECS}
+    MessageType(msg_type): size for msg_type, size in wire.PAYLOAD_BYTES.items()}
 """Fixed payload size in bytes of each message type (version 1)."""
 
-
-def _largest_encoded_frame() -> int:
-    body = HEADER_BYTES + max(PAYLOAD_BYTES.values()) + CRC_BYTES
-    return body + 1 + body // 254 + len(FRAME_DELIMITER)
-
-
-LARGEST_FRAME_BYTES = _largest_encoded_frame()
+LARGEST_FRAME_BYTES = wire.LARGEST_FRAME_BYTES
 """Size of the largest version 1 frame on the wire, delimiter included (36)."""
 
 assert LARGEST_FRAME_BYTES <= MAX_FRAME_BYTES
@@ -444,16 +378,7 @@ def encode_frame(message: Message, seq: int) -> bytes:
     codec = _CODEC_BY_CLASS.get(type(message))
     if codec is None:
         raise ProtocolError(f'not a protocol message: {message!r}')
-    fields = codec.pack(message)
-    try:
-        payload = codec.payload.pack(*fields)
-    except (struct.error, OverflowError) as exc:  # pragma: no cover - caught by pack checks
-        raise ProtocolError(f'cannot pack {message!r}: {exc}') from exc
-    header = _HEADER.pack(PROTOCOL_VERSION, int(codec.message_type),
-                          _as_int(seq, 'seq') % SEQ_MODULUS)
-    body = header + payload
-    body += _CRC.pack(crc16_ccitt(body))
-    return cobs_encode(body) + FRAME_DELIMITER
+    return wire.encode_frame(int(codec.message_type), _as_int(seq, 'seq'), codec.pack(message))
 
 
 # ----------------------------------------------------------------------- decoder
@@ -485,13 +410,12 @@ class DecoderStats:
     @property
     def errors(self) -> int:
         """Total number of dropped runs, whatever the reason."""
-        return (self.bad_cobs + self.bad_crc + self.bad_length + self.wrong_version
-                + self.unknown_type + self.bad_payload + self.oversized)
+        return wire.dropped_frames(self)
 
 
-class FrameDecoder:
+class FrameDecoder(wire.FrameDecoder):
     """
-    Incremental receiver: bytes in, decoded frames out.
+    Incremental receiver: bytes in, decoded frames out (esp32_wire's decoder, typed).
 
     Accepts any chunking. Bad frames are counted in ``stats`` and dropped;
     ``feed`` never raises on any bytes. Memory is bounded by ``max_frame_bytes``.
@@ -500,95 +424,13 @@ class FrameDecoder:
     """
 
     def __init__(self, max_frame_bytes: int = MAX_FRAME_BYTES) -> None:
-        if max_frame_bytes < LARGEST_FRAME_BYTES:
-            raise ValueError(f'max_frame_bytes must be at least {LARGEST_FRAME_BYTES}, '
-                             f'got {max_frame_bytes}')
-        self.max_frame_bytes = max_frame_bytes
-        self.stats = DecoderStats()
-        self._buffer = bytearray()
-        self._discarding = False
+        super().__init__(max_frame_bytes, DecoderStats())
+        self.stats: DecoderStats
 
-    def reset(self) -> None:
-        """Forget a partially received frame (e.g. after reopening the port)."""
-        self.stats.bytes_discarded += len(self._buffer)
-        self._buffer.clear()
-        self._discarding = False
-
-    def feed(self, data: bytes) -> List[Frame]:
+    def feed(self, data: bytes) -> List[Frame]:  # type: ignore[override]
         """Consume received bytes; return the frames completed by them, in order."""
-        frames: List[Frame] = []
-        chunk = bytes(data)
-        start = 0
-        length = len(chunk)
-        while start < length:
-            end = chunk.find(0, start)
-            if end < 0:
-                self._collect(chunk[start:])
-                break
-            self._collect(chunk[start:end])
-            self._end_of_run(frames)
-            start = end + 1
-        return frames
-
-    def _collect(self, run: bytes) -> None:
-        if self._discarding:
-            self.stats.bytes_discarded += len(run)
-            return
-        self._buffer += run
-        if len(self._buffer) > self.max_frame_bytes - len(FRAME_DELIMITER):
-            self.stats.oversized += 1
-            self.stats.bytes_discarded += len(self._buffer)
-            self._buffer.clear()
-            self._discarding = True
-
-    def _end_of_run(self, frames: List[Frame]) -> None:
-        if self._discarding:
-            self._discarding = False
-            return
-        if not self._buffer:
-            return  # idle line / flush: not an error
-        run = bytes(self._buffer)
-        self._buffer.clear()
-        frame = self._decode_run(run)
-        if frame is None:
-            self.stats.bytes_discarded += len(run)
-        else:
-            self.stats.frames_ok += 1
-            frames.append(frame)
-
-    def _decode_run(self, run: bytes) -> Optional[Frame]:
-        stats = self.stats
-        try:
-            body = cobs_decode(run)
-        except ProtocolError:
-            stats.bad_cobs += 1
-            return None
-        if len(body) < HEADER_BYTES + CRC_BYTES:
-            stats.bad_length += 1
-            return None
-        (crc,) = _CRC.unpack_from(body, len(body) - CRC_BYTES)
-        if crc != crc16_ccitt(body[:-CRC_BYTES]):
-            stats.bad_crc += 1
-            return None
-        version, type_byte, seq = _HEADER.unpack_from(body)
-        if version != PROTOCOL_VERSION:
-            stats.wrong_version += 1
-            stats.last_wrong_version = version
-            return None
-        codec = _CODEC_BY_TYPE.get(type_byte)
-        if codec is None:
-            stats.unknown_type += 1
-            return None
-        payload = body[HEADER_BYTES:-CRC_BYTES]
-        if len(payload) != codec.payload.size:
-            stats.bad_length += 1
-            return None
-        try:
-            message = codec.unpack(codec.payload.unpack(payload))
-        except ProtocolError:
-            stats.bad_payload += 1
-            return None
-        return Frame(seq, message)
+        return [Frame(seq, _CODEC_BY_TYPE[msg_type].unpack(fields))
+                for msg_type, seq, fields in super().feed(bytes(data))]
 
 
 # ------------------------------------------------------------- sequence numbers
@@ -596,8 +438,7 @@ class FrameDecoder:
 
 def seq_delta(previous: int, current: int) -> int:
     """Signed distance from ``previous`` to ``current`` modulo 2^16, in [-32768, 32767]."""
-    half = SEQ_MODULUS // 2
-    return (current - previous + half) % SEQ_MODULUS - half
+    return wire.seq_delta(previous, current)
 
 
 class SequenceTracker:

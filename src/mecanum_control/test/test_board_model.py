@@ -1,13 +1,21 @@
-"""Hand-worked tests of mecanum_control.board_model (wheel physics, firmware timeout, IMU)."""
+"""
+Hand-worked tests of the emulated board: board_model's physics and IMU under the firmware core.
+
+The command timeout tests run the firmware's own core (board_core, through board_sim)
+on the model, as the board emulator does.
+"""
 
 import math
 import os
 
-from mecanum_control.board_emulator import BoardLink, parse_args, PtyPort
+from mecanum_control.board_emulator import parse_args
 from mecanum_control.board_model import (
     BoardModel, MotorModel, STANDARD_GRAVITY_M_S2, to_int32, Wheel)
-from mecanum_control.esp32_protocol import EncoderTicks, FaultFlags, FrameDecoder
+from mecanum_control.board_params import board_params
+from mecanum_control.board_sim import PtyPort, SerialLine, SimulatedBoard
+from mecanum_control.esp32_protocol import encode_frame, EncoderTicks, FaultFlags, FrameDecoder
 from mecanum_control.kinematics import MecanumGeometry
+from mecanum_control.robot_config import default_config_path, load_robot_config
 import pytest
 
 # r = 0.05 m, lx = 0.10 m, ly = 0.15 m: lx + ly = 0.25 m.
@@ -15,11 +23,55 @@ GEOMETRY = MecanumGeometry(wheel_radius_m=0.05, half_wheelbase_m=0.10, half_trac
 # Full duty -> 30 rad/s, time constant 0.1 s, dead band 0.03 (the default).
 MOTOR = MotorModel(no_load_speed_rad_s=30.0, time_constant_s=0.1)
 RAD_PER_COUNT = 2.0 * math.pi / 1000.0
+#: The robot's config: the firmware's fault thresholds.
+ROBOT = load_robot_config(default_config_path())
+
+
+class EmulatedBoard:
+    """The board model under the firmware core, as the emulator runs them (no serial line)."""
+
+    def __init__(self, **kwargs):
+        self.model = BoardModel(geometry=GEOMETRY, motor=MOTOR, rad_per_count=RAD_PER_COUNT,
+                                **kwargs)
+        self.board = SimulatedBoard(self.model, board_params(ROBOT))
+        self.core = self.board.core
+
+    def step(self, dt_s):
+        """Step the model, then run one firmware loop iteration, as the emulator does."""
+        self.model.step(dt_s)
+        self.board.poll()
+
+    def command(self, efforts, command_timeout_ms, seq):
+        """Apply efforts in -1..1, as a MOTOR_EFFORTS frame would."""
+        self.board.command(efforts, command_timeout_ms, seq)
+
+    def clear_faults(self, faults):
+        """Clear latched faults, as a CLEAR_FAULTS frame would."""
+        self.board.clear_faults(faults)
+
+    @property
+    def efforts(self):
+        """Return the duties the firmware applies."""
+        return self.board.efforts
+
+    @property
+    def faults(self):
+        """Return the firmware's fault bits."""
+        return self.board.faults
+
+    @property
+    def last_command_seq(self):
+        """Return the sequence number of the firmware's last command."""
+        return self.board.last_command_seq
+
+    def __getattr__(self, name):
+        """Everything else is the model's (wheels, ticks, imu, time_us)."""
+        return getattr(self.model, name)
 
 
 def make_board(**kwargs):
     """Return a board with the test geometry, motor and 1000 counts per wheel turn."""
-    return BoardModel(geometry=GEOMETRY, motor=MOTOR, rad_per_count=RAD_PER_COUNT, **kwargs)
+    return EmulatedBoard(**kwargs)
 
 
 def run(board, seconds, dt_s=0.01):
@@ -192,14 +244,13 @@ def test_next_command_clears_command_timeout():
 
 
 def test_command_keeps_other_faults():
-    """A command clears only COMMAND_TIMEOUT; clear_faults clears what it is asked to."""
+    """A command clears only COMMAND_TIMEOUT; clear_faults clears the latched bits asked."""
     board = make_board()
-    others = [flag for flag in FaultFlags
-              if flag and flag != FaultFlags.COMMAND_TIMEOUT]
-    assert others, 'expected more fault bits than COMMAND_TIMEOUT in the protocol'
-    other = others[0]
-    board.faults = other | FaultFlags.COMMAND_TIMEOUT
+    other = FaultFlags.ENCODER_FAULT   # latched: only CLEAR_FAULTS clears it
+    board.core.faults = int(other | FaultFlags.COMMAND_TIMEOUT)
     board.command([0.0] * 4, command_timeout_ms=100, seq=1)
+    assert board.faults == other
+    board.clear_faults(FaultFlags.ESTOP_INPUT)   # a level bit: ignored
     assert board.faults == other
     board.clear_faults(other)
     assert board.faults == FaultFlags(0)
@@ -208,7 +259,7 @@ def test_command_keeps_other_faults():
 def test_never_commanded_board_does_not_move_and_reports_the_timeout():
     """Without any command the wheels stay still and COMMAND_TIMEOUT is set, as after boot."""
     board = make_board()
-    board.efforts = [1.0, 1.0, 1.0, 1.0]  # even stale duties are not applied
+    board.core.commanded = [10000] * 4  # even stale duties are not applied
     run(board, 1.0)
     assert board.faults == FaultFlags.COMMAND_TIMEOUT
     assert board.ticks == (0, 0, 0, 0)
@@ -449,13 +500,13 @@ def test_board_link_never_leaves_half_a_frame_on_a_full_line(tmp_path):
     The reader then drains the line; every byte decodes into valid frames.
     """
     link_path = tmp_path / 'tty'
-    link = BoardLink(make_board(), PtyPort(link_path))
+    link = SerialLine(PtyPort(link_path))
     link.plug()
     try:
         reader = os.open(link_path, os.O_RDONLY | os.O_NONBLOCK)
         try:
             for k in range(3000):  # about 90 kB: far beyond a pty's buffer
-                link.send(EncoderTicks(k, (k, k, k, k)))
+                link.write(encode_frame(EncoderTicks(k, (k, k, k, k)), k))
             decoder = FrameDecoder()
             frames = []
             for _ in range(3):
@@ -465,7 +516,7 @@ def test_board_link_never_leaves_half_a_frame_on_a_full_line(tmp_path):
                     except BlockingIOError:
                         break
                     frames += decoder.feed(chunk)
-                link.send(EncoderTicks(9999, (0, 0, 0, 0)))  # flushes any remainder
+                link.write(encode_frame(EncoderTicks(9999, (0, 0, 0, 0)), 0))  # flushes the rest
         finally:
             os.close(reader)
     finally:

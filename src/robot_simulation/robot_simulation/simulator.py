@@ -4,20 +4,22 @@ The simulated robot in its world, stepped in simulated time (pure, no ROS, no I/
 :class:`Simulation` owns the world (static geometry, moving obstacles, test zone),
 the mecanum rigid-body physics with DC motors and roller slip
 (:mod:`robot_simulation.physics`), the lidar and IMU models
-(:mod:`robot_simulation.sensors`) and :class:`SimulatedBoard`, which gives the
-physics the interface of the ESP32 firmware model so that
-:class:`mecanum_control.board_emulator.BoardLink` can serve it on a pseudo-terminal
-exactly like the real board's serial port. Time only advances in :meth:`step`, so a
+(:mod:`robot_simulation.sensors`) and the ESP32 board: the firmware's own core
+(:mod:`mecanum_control.board_core`) running on the simulated robot
+(:class:`RobotPlant`, through :class:`mecanum_control.board_sim.SimulatedBoard`), which
+serves a pseudo-terminal exactly like the real board's serial port once a line is
+attached. Time only advances in :meth:`step`, so a
 run is deterministic for a given seed whatever the wall clock does.
 Units: SI, REP-103; world frame x east, y north; wheel order FL, FR, RL, RR.
 """
 
 from dataclasses import dataclass, field
 import math
-from typing import List, Optional, Tuple
+from typing import List, Tuple
 
-from mecanum_control.board_model import FirmwareCommandRule, to_int32
-from mecanum_control.esp32_protocol import FaultFlags
+from mecanum_control.board_model import to_int32
+from mecanum_control.board_params import board_params
+from mecanum_control.board_sim import SimulatedBoard
 from mecanum_control.robot_config import RobotConfig
 import numpy as np
 from robot_simulation.physics import MecanumPhysics, PhysicsParams
@@ -59,28 +61,23 @@ class SimulatorConfig:
                              f'{self.floor_friction_coefficient}')
 
 
-class SimulatedBoard(FirmwareCommandRule):
+class RobotPlant:
     """
-    The ESP32 firmware's view of the simulated robot (BoardModel's interface).
+    The simulated robot as the board's hardware layer sees it (board_sim's plant).
 
-    Efforts from the host become the physics' motor duties; the board zeroes them
-    when no command arrives for the command timeout (and from boot), as the real
-    firmware does. Encoder counts are the wheel angles in whole quadrature counts.
+    ``efforts`` are the duties the firmware applies (-1..1, FL FR RL RR), which the
+    physics drives the motors with; the clock is simulated time; the encoder counts
+    are the wheel angles in whole quadrature counts; the IMU is the simulation's.
     """
 
-    def __init__(self, simulation: 'Simulation', rad_per_count: float,
-                 command_timeout_ms: int):
+    def __init__(self, simulation: 'Simulation', rad_per_count: float):
         self._sim = simulation
         self.rad_per_count = rad_per_count
-        self.command_timeout_ms = command_timeout_ms
         self.efforts: List[float] = [0.0] * 4
-        self.last_command_us: Optional[int] = None
-        self.last_command_seq = 0
-        self.faults = FaultFlags.COMMAND_TIMEOUT
 
     @property
     def time_us(self) -> int:
-        """Return the board clock: simulated time in microseconds."""
+        """Return simulated time in microseconds."""
         return int(round(self._sim.time_s * 1e6))
 
     @property
@@ -113,7 +110,8 @@ class Simulation:
                                       world.segments, x=x, y=y, yaw=yaw)
         self.lidar = Lidar(config.lidar, world.segments, seed=config.seed)
         self.imu_model = ImuModel(config.imu, seed=config.seed + 1)
-        self.board = SimulatedBoard(self, robot.rad_per_count, robot.board_command_timeout_ms)
+        # The firmware's own core on the simulated robot: attach a serial line to serve it.
+        self.board = SimulatedBoard(RobotPlant(self, robot.rad_per_count), board_params(robot))
         self.left_test_zone_count = 0
         self._last_imu_s = 0.0
         self._in_zone = world.in_test_zone(x, y)
@@ -131,8 +129,8 @@ class Simulation:
         self._walk_offset = [(0.0, 0.0)] * len(world.moving_obstacles)   # aside, world m
 
     def step(self) -> None:
-        """Advance one physics step with the board's current duties."""
-        self.physics.step(self.board.apply_command_timeout(), self.dt_s, self.all_circles())
+        """Advance one physics step with the board's duties, then run the board's loop once."""
+        self.physics.step(self.board.plant.efforts, self.dt_s, self.all_circles())
         self.steps += 1
         self.time_s = self.steps * self.dt_s
         self._walk(self.dt_s)
@@ -141,6 +139,7 @@ class Simulation:
         if self._in_zone and not in_zone:
             self.left_test_zone_count += 1
         self._in_zone = in_zone
+        self.board.poll()
 
     def _walk(self, dt_s: float) -> None:
         """

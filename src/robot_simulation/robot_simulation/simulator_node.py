@@ -56,7 +56,7 @@ import time
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, PoseArray, TransformStamped
-from mecanum_control.board_emulator import BoardLink, PtyPort
+from mecanum_control.board_sim import PtyPort, SerialLine
 from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.messages import planar_odometry
 from mecanum_control.node_main import make_executor, run_node, signals_deferred
@@ -140,12 +140,11 @@ class SimulatorNode(Node):
         board_port = str(declare('board_port', '').value)
 
         self.sim = Simulation(self.world, robot, config)
-        self.link = None
+        self.link = None   # the simulated board's serial line
         if board_port:
-            self.link = BoardLink(self.sim.board, PtyPort(Path(board_port)),
-                                  seed=config.seed + 2)
+            self.link = SerialLine(PtyPort(Path(board_port)), seed=config.seed + 2)
             try:
-                self.link.plug()
+                self.sim.board.attach(self.link)
             except OSError as error:
                 raise ValueError(f'cannot create the board port {board_port}: {error}') from None
         self.scan_period_s = 1.0 / lidar.rate_hz
@@ -203,12 +202,10 @@ class SimulatorNode(Node):
         self.lockstep.alive(msg.frame_id, time.monotonic())
 
     def advance(self) -> None:
-        """One physics step, then everything due at the new simulated time."""
+        """One physics step (the board's loop runs in it), then everything due now."""
         sim = self.sim
         sim.step()
         now = sim.time_s
-        if self.link is not None:
-            self.link.poll(now)
         if now + 1e-9 >= self._next['clock']:
             self._next['clock'] += self.clock_period_s
             self.clock_pub.publish(Clock(clock=stamp(now)))
@@ -311,8 +308,9 @@ class SimulatorNode(Node):
     def _take_board_commands(self) -> float:
         """Tell lockstep about the board commands received since the last call; return now."""
         now = time.monotonic()
-        if self.link.commands_received != self._commands_seen:
-            self._commands_seen = self.link.commands_received
+        commands = self.sim.board.commands_received
+        if commands != self._commands_seen:
+            self._commands_seen = commands
             self.lockstep.board_command(now)
         return now
 
@@ -323,9 +321,9 @@ class SimulatorNode(Node):
         Takes the board's commands from the serial line and the /clock_ack messages
         meanwhile; raises LockstepError when the board has stopped answering for good.
         """
-        gate, link = self.lockstep, self.link
+        gate, link, board = self.lockstep, self.link, self.sim.board
         while not stop.is_set():
-            link.receive()
+            board.receive()
             now = self._take_board_commands()
             missing = gate.waiting_for(now)
             for event in gate.events():

@@ -1,0 +1,169 @@
+"""
+The ESP32 hardware layer: the only firmware module that touches machine/esp32.
+
+It gives board_core (mecanum_control/board_core.py) what its docstring lists: the
+clock (time.ticks_us), the serial link to the host, four motors through an H-bridge
+(h_bridge.py rules, PWM + direction pins), four quadrature encoders counted in
+hardware and the IMU (imu_drivers.py), all as board_config.py wires them.
+
+Encoders: MicroPython 1.26 and later (1.27 here) have machine.Encoder on the ESP32:
+a Python shim over esp32.PCNT (one pulse counter unit per encoder, phases=4 for 4x
+quadrature in the hardware, overflows at +-32000 counted by an interrupt handler so
+value() is a full Python int). Wheel order everywhere FL, FR, RL, RR; duties are raw
+protocol units (-10000 .. 10000), positive rolling the robot forward.
+"""
+
+import select
+import sys
+import time
+
+import h_bridge
+import imu_drivers
+from machine import ADC, Encoder, I2C, Pin, PWM, UART, WDT
+import micropython
+
+
+class Esp32Hardware:
+    """The board's motors, encoders, IMU, inputs and serial link, as board_config says."""
+
+    # MicroPython 1.27's machine.reset_cause() folds a brownout into PWRON_RESET
+    # (ports/esp32/modmachine.c), so a brownout cannot be told apart: never reported.
+    brownout_reset = False
+
+    def __init__(self, config):
+        """Set up the motors, stopped (call start() for the rest)."""
+        self.config = config
+        self.ticks_us = time.ticks_us
+        self.ticks_diff = time.ticks_diff
+        self.ticks_add = time.ticks_add
+        self._brake = config.BRAKE_AT_ZERO
+        self._two_pwm = config.DRIVER == 'DRV8833'
+        if config.DRIVER not in h_bridge.DRIVERS:
+            raise ValueError('board_config.DRIVER must be one of %s' % (h_bridge.DRIVERS,))
+        self._motors = []
+        for wiring in config.MOTORS:
+            self._motors.append(self._make_motor(wiring, config.PWM_FREQ_HZ))
+        self.set_duties((0, 0, 0, 0))   # motors off before anything else
+        if config.STANDBY_PIN is not None:
+            Pin(config.STANDBY_PIN, Pin.OUT, value=1)
+
+    def start(self):
+        """Set up the encoders, the IMU, the inputs, the serial link and the watchdog."""
+        config = self.config
+        pull = Pin.PULL_UP if config.ENCODER_PULL_UP else None
+        self._encoders = []
+        for unit, wiring in enumerate(config.ENCODERS):
+            encoder = Encoder(unit, Pin(wiring['a'], Pin.IN, pull), Pin(wiring['b'], Pin.IN, pull),
+                              phases=4, filter_ns=config.ENCODER_FILTER_NS)
+            self._encoders.append((encoder, -1 if wiring['invert'] else 1))
+        self._imu = None
+        if config.IMU is not None:
+            i2c = I2C(config.I2C_ID, scl=Pin(config.I2C_SCL), sda=Pin(config.I2C_SDA),
+                      freq=config.I2C_FREQ_HZ)
+            try:
+                self._imu = imu_drivers.DRIVERS[config.IMU](i2c, config.IMU_ADDRESS)
+            except OSError:
+                self._imu = None   # absent: IMU_FAULT from the first read on
+        self._imu_wanted = config.IMU is not None
+        self._battery = None
+        if config.BATTERY_ADC_PIN is not None:
+            self._battery = ADC(Pin(config.BATTERY_ADC_PIN), atten=ADC.ATTN_11DB)
+            self._divider = config.BATTERY_DIVIDER
+        self._estop = None if config.ESTOP_PIN is None else Pin(
+            config.ESTOP_PIN, Pin.IN, Pin.PULL_UP)
+        self._fault = None if config.DRIVER_FAULT_PIN is None else Pin(
+            config.DRIVER_FAULT_PIN, Pin.IN, Pin.PULL_UP)
+        self._uart = None
+        self._poll = select.poll()
+        if config.SERIAL == 'uart':
+            self._uart = UART(config.UART_ID, baudrate=config.UART_BAUD, tx=config.UART_TX,
+                              rx=config.UART_RX, timeout=0, rxbuf=512)
+            self._poll.register(self._uart, select.POLLIN)
+        else:
+            micropython.kbd_intr(-1)   # 0x03 in a frame is data, not Ctrl-C
+            self._stdin = sys.stdin.buffer
+            self._stdout = sys.stdout.buffer
+            self._poll.register(sys.stdin, select.POLLIN)
+        self._watchdog = WDT(timeout=config.WATCHDOG_MS)
+
+    @staticmethod
+    def _make_motor(wiring, freq_hz):
+        """Return (kind, outputs, sign) of one motor's pins."""
+        sign = -1 if wiring['invert'] else 1
+        if 'pwm' in wiring:
+            pwm = PWM(Pin(wiring['pwm'], Pin.OUT), freq=freq_hz, duty_u16=0)
+            return (pwm, Pin(wiring['in1'], Pin.OUT, value=0),
+                    Pin(wiring['in2'], Pin.OUT, value=0), sign)
+        return (PWM(Pin(wiring['in1'], Pin.OUT), freq=freq_hz, duty_u16=0),
+                PWM(Pin(wiring['in2'], Pin.OUT), freq=freq_hz, duty_u16=0), None, sign)
+
+    # --- board_core's hardware interface ----------------------------------------------
+    def set_duties(self, duties):
+        """Drive the motors: raw duties FL, FR, RL, RR (-10000 .. 10000)."""
+        for motor, duty in zip(self._motors, duties):
+            first, second, third, sign = motor
+            if third is None:   # DRV8833: two PWM inputs
+                level_1, level_2 = h_bridge.two_pwm_outputs(duty * sign, self._brake)
+                first.duty_u16(level_1)
+                second.duty_u16(level_2)
+            else:
+                level, in1, in2 = h_bridge.direction_pins_outputs(duty * sign, self._brake)
+                if level == 0 or in1 == in2:   # stopping: PWM first, then the pins
+                    first.duty_u16(level)
+                    second.value(in1)
+                    third.value(in2)
+                else:
+                    second.value(in1)
+                    third.value(in2)
+                    first.duty_u16(level)
+
+    def read_counts(self):
+        """Return the four encoder counts (forward positive), FL FR RL RR."""
+        return [encoder.value() * sign for encoder, sign in self._encoders]
+
+    def read_imu(self):
+        """Return (ax, ay, az, gx, gy, gz) or None when the IMU fails."""
+        if self._imu is None:
+            return None
+        try:
+            return self._imu.read()
+        except OSError:
+            return None
+
+    def battery_mv(self):
+        """Return the battery voltage in mV (0: not measured)."""
+        if self._battery is None:
+            return 0
+        return int(self._battery.read_uv() * self._divider / 1000)
+
+    def estop_active(self):
+        """Tell whether the e-stop input is active (low)."""
+        return self._estop is not None and self._estop.value() == 0
+
+    def driver_fault(self):
+        """Tell whether the motor driver reports a fault (low)."""
+        return self._fault is not None and self._fault.value() == 0
+
+    def read(self):
+        """Return the bytes the host sent (b'' if none), without waiting."""
+        if self._uart is not None:
+            return self._uart.read() or b''
+        data = b''
+        while len(data) < 64 and self._poll.poll(0):
+            data += self._stdin.read(1)
+        return data
+
+    def write(self, data):
+        """Send bytes to the host."""
+        if self._uart is not None:
+            self._uart.write(data)
+        else:
+            self._stdout.write(data)
+
+    # --- for main.py ----------------------------------------------------------------------
+    def idle(self, wait_us):
+        """Feed the watchdog, then wait for host bytes for up to wait_us (at most 2 ms)."""
+        self._watchdog.feed()
+        wait_ms = wait_us // 1000
+        if wait_ms > 0:
+            self._poll.poll(2 if wait_ms > 2 else wait_ms)

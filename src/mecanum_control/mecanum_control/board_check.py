@@ -1,0 +1,221 @@
+"""
+board_check: open the ESP32 board's serial port and print what it says (no ROS needed).
+
+For a first run after flashing (firmware/README.md) and for a robot that will not
+move: it writes the leading 0x00, asks the board to clear its latched faults, sends
+zero efforts at 50 Hz (so the watchdog is fed and COMMAND_TIMEOUT should clear) and
+prints the board's status, faults, battery, encoder ticks and IMU. With ``--spin FL``
+it then turns that wheel at ``--duty`` for ``--spin-seconds`` and says which way it
+counted, in counts and wheel turns (counts per turn from the robot config).
+
+Exit code: 0 if the board answered in protocol v1 with no fault but those it was told
+about, and the spun wheel counted forward; 1 otherwise; 2 if nothing answered.
+
+Example::
+
+    ros2 run mecanum_control board_check --port /dev/ttyUSB0 --spin FL
+"""
+
+import argparse
+import os
+from pathlib import Path
+import select
+import sys
+import time
+from typing import List, Optional, Tuple
+
+from mecanum_control import esp32_protocol as proto
+from mecanum_control.robot_config import (
+    default_config_path, load_robot_config, RobotConfig, RobotConfigError)
+
+WHEELS = ('FL', 'FR', 'RL', 'RR')
+COMMAND_PERIOD_S = 0.02
+
+
+class BoardSession:
+    """The host's end of the link, on a file descriptor: commands out, frames in."""
+
+    def __init__(self, fd: int, command_timeout_ms: int):
+        self.fd = fd
+        self.command_timeout_ms = command_timeout_ms
+        self.decoder = proto.FrameDecoder()
+        self.seq = {proto.MessageType.MOTOR_EFFORTS: 0, proto.MessageType.CLEAR_FAULTS: 0}
+        self.frames: List[proto.Frame] = []
+        self.last_effort_seq = 0
+        os.write(fd, proto.FRAME_DELIMITER)   # leading delimiter after opening the port
+
+    def send(self, message: proto.Message) -> None:
+        """Send one message, numbered per type."""
+        msg_type = proto.message_type_of(message)
+        self.seq[msg_type] = (self.seq[msg_type] + 1) % proto.SEQ_MODULUS
+        if msg_type == proto.MessageType.MOTOR_EFFORTS:
+            self.last_effort_seq = self.seq[msg_type]
+        os.write(self.fd, proto.encode_frame(message, self.seq[msg_type]))
+
+    def drive(self, efforts: Tuple[float, float, float, float], seconds: float) -> None:
+        """Send efforts (duty -1..1, FL FR RL RR) at 50 Hz for seconds, taking frames."""
+        end = time.monotonic() + seconds
+        next_command = time.monotonic()
+        while True:
+            now = time.monotonic()
+            if now >= end:
+                break
+            if now >= next_command:
+                self.send(proto.MotorEfforts(efforts, self.command_timeout_ms))
+                next_command += COMMAND_PERIOD_S
+            self.receive(min(next_command, end) - time.monotonic())
+
+    def receive(self, wait_s: float) -> None:
+        """Take what arrives within wait_s."""
+        readable, _, _ = select.select([self.fd], [], [], max(0.0, wait_s))
+        if readable:
+            try:
+                data = os.read(self.fd, 4096)
+            except BlockingIOError:
+                return
+            self.frames += self.decoder.feed(data)
+
+    def latest(self, kind: type) -> Optional[proto.Message]:
+        """Return the latest message of a class, or None."""
+        for frame in reversed(self.frames):
+            if isinstance(frame.message, kind):
+                return frame.message
+        return None
+
+    def count(self, kind: type) -> int:
+        """Return how many messages of a class came."""
+        return sum(isinstance(frame.message, kind) for frame in self.frames)
+
+
+def report(session: BoardSession, seconds: float) -> Tuple[List[str], bool]:
+    """Return the lines describing what the board sent, and whether it looks healthy."""
+    lines = []
+    stats = session.decoder.stats
+    status = session.latest(proto.BoardStatus)
+    healthy = status is not None
+    rates = ', '.join(f'{session.count(kind) / seconds:.0f} Hz {kind.__name__}'
+                      for kind in (proto.EncoderTicks, proto.ImuSample, proto.BoardStatus))
+    lines.append(f'frames: {stats.frames_ok} good, {stats.errors} dropped ({rates})')
+    if stats.wrong_version:
+        lines.append(f'the board speaks protocol v{stats.last_wrong_version}, this host '
+                     f'v{proto.PROTOCOL_VERSION}: flash matching firmware')
+        healthy = False
+    if status is None:
+        lines.append('no BOARD_STATUS: is the firmware running (not the REPL), at 115200 baud?')
+        return lines, False
+    lines.append(f'faults: {proto.describe_faults(status.faults)}')
+    lines.append(f'battery: {status.battery_mv / 1000:.2f} V' if status.battery_mv
+                 else 'battery: not measured')
+    lines.append(f'board dropped {status.rx_bad_frames} frames of ours; last command applied '
+                 f'#{status.last_command_seq} (sent #{session.last_effort_seq})')
+    if status.faults:
+        healthy = False
+    ticks = session.latest(proto.EncoderTicks)
+    if ticks is not None:
+        lines.append('ticks: ' + ', '.join(f'{w} {t}' for w, t in zip(WHEELS, ticks.ticks)))
+    imu = session.latest(proto.ImuSample)
+    if imu is None:
+        lines.append('imu: no samples')
+    else:
+        accel = ', '.join(f'{a:.2f}' for a in imu.accel_m_s2)
+        gyro = ', '.join(f'{g:.3f}' for g in imu.gyro_rad_s)
+        lines.append(f'imu: accel [{accel}] m/s^2 (|a| '
+                     f'{sum(a * a for a in imu.accel_m_s2) ** 0.5:.2f}), gyro [{gyro}] rad/s')
+    return lines, healthy
+
+
+def spin(session: BoardSession, wheel: str, duty: float, seconds: float,
+         config: RobotConfig) -> Tuple[List[str], bool]:
+    """Turn one wheel at duty for seconds; return what it counted and whether forward."""
+    index = WHEELS.index(wheel)
+    before = session.latest(proto.EncoderTicks)
+    efforts = [0.0] * 4
+    efforts[index] = duty
+    session.drive(tuple(efforts), seconds)
+    session.drive((0.0, 0.0, 0.0, 0.0), 0.3)
+    after = session.latest(proto.EncoderTicks)
+    if before is None or after is None:
+        return [f'spin {wheel}: no ENCODER_TICKS'], False
+    moved = [((b - a + (1 << 31)) % (1 << 32)) - (1 << 31)
+             for a, b in zip(before.ticks, after.ticks)]
+    turns = moved[index] / config.counts_per_wheel_rev
+    others = ', '.join(f'{w} {m}' for w, m in zip(WHEELS, moved) if w != wheel)
+    line = (f'spin {wheel} at duty {duty:+.2f} for {seconds:.1f} s: {moved[index]:+d} counts '
+            f'({turns:+.2f} wheel turns); others: {others}')
+    expected = 1 if duty > 0 else -1
+    if moved[index] * expected > 0:
+        return [line, f'spin {wheel}: counted the right way'], True
+    if moved[index] == 0:
+        why = 'no counts: motor not turning (wiring, driver, power) or encoder not connected'
+    else:
+        why = ('counted backwards: flip this wheel\'s motor "invert" or encoder "invert" in '
+               'firmware/board_config.py')
+    return [line, f'spin {wheel}: {why}'], False
+
+
+def parse_args(argv: List[str]) -> argparse.Namespace:
+    """Parse the command line (anything from --ros-args on is ignored)."""
+    if '--ros-args' in argv:
+        argv = argv[:argv.index('--ros-args')]
+    parser = argparse.ArgumentParser(prog='board_check', description=__doc__.split('\n')[1])
+    parser.add_argument('--port', required=True, help='serial port, e.g. /dev/ttyUSB0')
+    parser.add_argument('--baud', type=int, default=115200)
+    parser.add_argument('--config', type=Path, default=None,
+                        help='motor_params.yaml (default: the installed one)')
+    parser.add_argument('--seconds', type=float, default=1.0,
+                        help='how long to listen (sending zero efforts)')
+    parser.add_argument('--spin', choices=WHEELS, help='turn this wheel afterwards')
+    parser.add_argument('--duty', type=float, default=0.2, help='duty of the spin, -1..1')
+    parser.add_argument('--spin-seconds', type=float, default=2.0)
+    args = parser.parse_args(argv)
+    if not -1.0 <= args.duty <= 1.0 or args.duty == 0.0:
+        parser.error('--duty must be in [-1, 1] and not 0')
+    if not args.seconds > 0 or not args.spin_seconds > 0:
+        parser.error('--seconds and --spin-seconds must be > 0')
+    return args
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Check the board and print the findings."""
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        config = load_robot_config(args.config or default_config_path())
+    except RobotConfigError as error:
+        print(f'board_check: {error}', file=sys.stderr)
+        return 2
+    import serial
+    try:
+        line = serial.Serial(args.port, args.baud, timeout=0)
+    except (OSError, ValueError, serial.SerialException) as error:
+        print(f'board_check: cannot open {args.port}: {error}', file=sys.stderr)
+        return 2
+    with line:
+        return check(BoardSession(line.fileno(), config.board_command_timeout_ms), args, config)
+
+
+def check(session: BoardSession, args: argparse.Namespace, config: RobotConfig) -> int:
+    """Run the check on an open session; return the exit code."""
+    session.send(proto.ClearFaults(proto.FaultFlags(0xFFFF)))
+    session.drive((0.0, 0.0, 0.0, 0.0), args.seconds)
+    lines, healthy = report(session, args.seconds)
+    print(f'board_check: {args.port}, protocol v{proto.PROTOCOL_VERSION}')
+    for line in lines:
+        print('  ' + line)
+    if not session.frames:
+        print('board_check: the board did not answer', file=sys.stderr)
+        return 2
+    if args.spin:
+        lines, forward = spin(session, args.spin, args.duty, args.spin_seconds, config)
+        for line in lines:
+            print('  ' + line)
+        healthy = healthy and forward
+        status = session.latest(proto.BoardStatus)
+        if status is not None and status.faults:
+            print(f'  faults after the spin: {proto.describe_faults(status.faults)}')
+            healthy = False
+    print('board_check: ' + ('OK' if healthy else 'PROBLEMS (see above)'))
+    return 0 if healthy else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

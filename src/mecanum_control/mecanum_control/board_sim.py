@@ -1,0 +1,302 @@
+"""
+The firmware's own core on simulated hardware: the board the emulator and the simulator serve.
+
+:class:`SimulatedBoard` runs :class:`mecanum_control.board_core.BoardCore`, the code
+the ESP32 runs, on :class:`SimulatedHardware`: a hardware layer whose clock, motors,
+encoders and IMU are a simulated robot (the *plant*) and whose serial port is the
+board's end of a pseudo-terminal (:class:`SerialLine` on a :class:`PtyPort`). So every
+emulated or simulated run exercises the firmware's watchdog, fault handling and
+framing. The plant is any object with ``time_us`` (int, microseconds since boot),
+``ticks`` (four encoder counts FL, FR, RL, RR), ``imu()`` ((ax, ay, az) m/s^2,
+(gx, gy, gz) rad/s) and ``efforts`` (four duties -1..1 it applies, set here).
+"""
+
+import errno
+import os
+from pathlib import Path
+import random
+import tty
+from typing import List, Mapping, Optional, Sequence
+
+from mecanum_control import esp32_wire as wire
+from mecanum_control.board_core import BoardCore
+from mecanum_control.esp32_protocol import FaultFlags
+
+#: The ESP32's MicroPython tick counters wrap at 2^30 (time.ticks_us); so do these.
+TICKS_PERIOD = 1 << 30
+_TICKS_MASK = TICKS_PERIOD - 1
+_TICKS_HALF = TICKS_PERIOD // 2
+
+
+class PtyPort:
+    """A pseudo-terminal whose device path is published as a symlink."""
+
+    def __init__(self, link: Path):
+        self.link = link
+        self.master: Optional[int] = None
+        self._slave: Optional[int] = None
+        self.device = ''
+
+    def plug(self) -> None:
+        """Create a new raw pty and point the link at it (atomically)."""
+        if self.link.exists() or self.link.is_symlink():
+            target = os.readlink(self.link) if self.link.is_symlink() else None
+            if target is None or not target.startswith('/dev/pts/'):
+                raise FileExistsError(
+                    f'{self.link} exists and is not a pseudo-terminal link: refusing to '
+                    'replace it (is it a real device?)')
+        master, slave = os.openpty()
+        try:
+            tty.setraw(slave)
+            os.set_blocking(master, False)
+            device = os.ttyname(slave)
+            tmp = self.link.with_name(f'.{self.link.name}.{os.getpid()}')
+            if tmp.is_symlink():
+                tmp.unlink()
+            os.symlink(device, tmp)
+            os.replace(tmp, self.link)
+        except OSError:
+            os.close(master)
+            os.close(slave)
+            raise
+        self.master, self._slave, self.device = master, slave, device
+        try:
+            os.write(master, b'\x00')  # leading delimiter after boot (protocol doc, 1)
+        except OSError:
+            pass
+
+    def unplug(self) -> None:
+        """Remove the link and close the pty, as pulling the USB cable would."""
+        if self.link.is_symlink() and os.readlink(self.link) == self.device:
+            self.link.unlink()
+        for fd in (self.master, self._slave):
+            if fd is not None:
+                os.close(fd)
+        self.master = self._slave = None
+
+    @property
+    def plugged(self) -> bool:
+        """Whether the pty exists."""
+        return self.master is not None
+
+
+class SerialLine:
+    """
+    The board's end of the serial line: a pty, with line faults if asked.
+
+    Each frame written may be lost (``drop_rate``) or get one flipped bit
+    (``corrupt_rate``). A line whose reader lags drops whole frames, never half of
+    one, as a UART with a full buffer does.
+    """
+
+    def __init__(self, port: PtyPort, drop_rate: float = 0.0, corrupt_rate: float = 0.0,
+                 seed: Optional[int] = None):
+        self.port = port
+        self.drop_rate = drop_rate
+        self.corrupt_rate = corrupt_rate
+        self._random = random.Random(seed)
+        self._pending = b''
+
+    def plug(self) -> None:
+        """Plug the cable in: a fresh pty (its first byte is the leading 0x00)."""
+        self._pending = b''
+        self.port.plug()
+
+    @property
+    def plugged(self) -> bool:
+        """Whether the pty exists."""
+        return self.port.plugged
+
+    def read(self) -> bytes:
+        """Return what the host wrote since the last call (b'' if nothing)."""
+        try:
+            return os.read(self.port.master, 4096)
+        except BlockingIOError:
+            return b''
+        except OSError as error:
+            if error.errno == errno.EIO:  # no process has the device open
+                return b''
+            raise
+
+    def write(self, data: bytes) -> None:
+        """Send frames (each ends with 0x00); the line may drop or corrupt each."""
+        if self.drop_rate or self.corrupt_rate:
+            data = self._spoil(data)
+        if not data or not self.port.plugged:
+            return
+        if not self._flush_pending():
+            return  # the line is still busy with the rest of an earlier frame: drop these
+        try:
+            written = os.write(self.port.master, data)
+        except (BlockingIOError, OSError):
+            return  # nobody reading and the pty buffer is full: the frames are lost, as on a UART
+        if written < len(data):
+            self._pending = bytes(data[written:])  # never leave half a frame on the line
+
+    def _spoil(self, data: bytes) -> bytes:
+        """Drop or corrupt whole frames of data at the configured rates."""
+        out = bytearray()
+        for frame in data.split(wire.FRAME_DELIMITER)[:-1]:
+            frame = bytearray(frame + wire.FRAME_DELIMITER)
+            if self.drop_rate and self._random.random() < self.drop_rate:
+                continue
+            if self.corrupt_rate and self._random.random() < self.corrupt_rate:
+                index = self._random.randrange(len(frame) - 1)
+                frame[index] ^= 1 << self._random.randrange(8)
+            out += frame
+        return bytes(out)
+
+    def _flush_pending(self) -> bool:
+        """Write what is left of a partly written frame; return True when nothing is left."""
+        if self._pending:
+            try:
+                written = os.write(self.port.master, self._pending)
+            except (BlockingIOError, OSError):
+                return False
+            self._pending = self._pending[written:]
+        return not self._pending
+
+
+class SimulatedHardware:
+    """
+    The firmware's hardware layer (board_core's ``hw``) on a simulated robot.
+
+    The clock is the plant's time (wrapping like MicroPython's ticks_us), duties go to
+    the plant's motors (raw -10000..10000 to -1..1), the counters and the IMU are the
+    plant's, the serial port is the line (none: nothing is read, writes vanish).
+    """
+
+    brownout_reset = False
+
+    def __init__(self, plant, line: Optional[SerialLine] = None, battery_mv: int = 12000):
+        self.plant = plant
+        self.line = line
+        self._battery_mv = battery_mv
+
+    def ticks_us(self) -> int:
+        """Return the plant's time in microseconds, wrapping at TICKS_PERIOD."""
+        return self.plant.time_us & _TICKS_MASK
+
+    @staticmethod
+    def ticks_diff(new: int, old: int) -> int:
+        """Signed difference of two tick readings (time.ticks_diff)."""
+        return ((new - old + _TICKS_HALF) & _TICKS_MASK) - _TICKS_HALF
+
+    @staticmethod
+    def ticks_add(ticks: int, delta: int) -> int:
+        """Tick reading delta microseconds on (time.ticks_add)."""
+        return (ticks + delta) & _TICKS_MASK
+
+    def read(self) -> bytes:
+        """Return the host's bytes since the last call."""
+        line = self.line
+        return line.read() if line is not None and line.plugged else b''
+
+    def write(self, data: bytes) -> None:
+        """Send bytes to the host (lost when no line is plugged)."""
+        if self.line is not None:
+            self.line.write(data)
+
+    def set_duties(self, duties: Sequence[int]) -> None:
+        """Drive the plant's motors: raw duties FL, FR, RL, RR."""
+        scale = wire.EFFORT_SCALE
+        self.plant.efforts = [duty / scale for duty in duties]
+
+    def read_counts(self):
+        """Return the plant's encoder counts FL, FR, RL, RR."""
+        return self.plant.ticks
+
+    def read_imu(self):
+        """Return (ax, ay, az, gx, gy, gz) of the plant's IMU."""
+        accel, gyro = self.plant.imu()
+        return tuple(accel) + tuple(gyro)
+
+    def battery_mv(self) -> int:
+        """Return the simulated battery voltage (mV)."""
+        return self._battery_mv
+
+    @staticmethod
+    def estop_active() -> bool:
+        """Tell whether the e-stop input is active: never in simulation."""
+        return False
+
+    @staticmethod
+    def driver_fault() -> bool:
+        """Tell whether a motor driver reports a fault: never in simulation."""
+        return False
+
+
+class SimulatedBoard:
+    """
+    The firmware core on simulated hardware, with the host's view of its state.
+
+    Call :meth:`poll` after each physics step (one firmware loop iteration at the
+    plant's time). ``efforts`` are the applied duties as fractions -1..1 (FL, FR,
+    RL, RR), ``faults`` the fault bits.
+    """
+
+    def __init__(self, plant, params: Mapping[str, int], line: Optional[SerialLine] = None):
+        self.plant = plant
+        self.hw = SimulatedHardware(plant, line)
+        self.core = BoardCore(self.hw, params)
+
+    @property
+    def line(self) -> Optional[SerialLine]:
+        """Return the serial port's line, None when the board is connected to nothing."""
+        return self.hw.line
+
+    def attach(self, line: SerialLine) -> None:
+        """Connect the board's serial port to a line and plug it in."""
+        self.hw.line = line
+        line.plug()
+
+    def poll(self) -> None:
+        """Run one firmware loop iteration; reports go out only on a plugged line."""
+        line = self.hw.line
+        self.core.poll(report=line is not None and line.plugged)
+
+    def receive(self) -> None:
+        """Take the host's frames now, without sending (the lockstep gate's look)."""
+        self.core.receive()
+
+    def command(self, efforts: Sequence[float], command_timeout_ms: int, seq: int) -> None:
+        """Apply efforts (-1..1, FL FR RL RR) as a MOTOR_EFFORTS frame would, at once."""
+        scale = wire.EFFORT_SCALE
+        self.core.command([round(max(-1.0, min(1.0, float(e))) * scale) for e in efforts],
+                          command_timeout_ms, seq)
+        self.core.enforce(self.hw.ticks_us())
+
+    def clear_faults(self, faults: int) -> None:
+        """Clear latched faults as a CLEAR_FAULTS frame would."""
+        self.core.clear_faults(int(faults))
+
+    @property
+    def commands_received(self) -> int:
+        """Return the number of MOTOR_EFFORTS taken so far."""
+        return self.core.commands_received
+
+    @property
+    def efforts(self) -> List[float]:
+        """Return the applied duties, -1..1, FL FR RL RR."""
+        scale = wire.EFFORT_SCALE
+        return [duty / scale for duty in self.core.duties]
+
+    @property
+    def faults(self) -> FaultFlags:
+        """Return the board's fault bits."""
+        return FaultFlags(self.core.faults)
+
+    @property
+    def command_timeout_ms(self) -> int:
+        """Return the command timeout of the last command (ms; 0 before one)."""
+        return self.core.command_timeout_ms
+
+    @property
+    def last_command_seq(self) -> int:
+        """Return the sequence number of the last command applied."""
+        return self.core.last_command_seq
+
+    @property
+    def ticks(self):
+        """Return the encoder counters FL, FR, RL, RR."""
+        return self.plant.ticks
