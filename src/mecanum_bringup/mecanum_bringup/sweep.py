@@ -64,6 +64,7 @@ PERSON_KEYS = ('name', 'speed_m_s', 'path', 'loop', 'radius_m')
 #: Most variants a sweep may have (a typo in a grid should not start a month of runs).
 MAX_VARIANTS = 10000
 _NAME = re.compile(r'[A-Za-z0-9_-]+')
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
 class SweepError(ValueError):
@@ -134,14 +135,18 @@ def load_sweep(path: PathLike) -> Sweep:
         raise SweepError(f'{path}: no such sweep file') from None
     except (OSError, UnicodeDecodeError) as error:
         raise SweepError(f'{path}: cannot read sweep file: {error}') from None
+    loader = _YAML_LOADER(text)
     try:
-        node = yaml.compose(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
-        doc = yaml.safe_load(text)
+        # One parse: the node tree gives the keys' lines, the document is built from it.
+        node = loader.get_single_node()
+        doc = loader.construct_document(node) if node is not None else None
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         problem = getattr(error, 'problem', None) or str(error)
         line = f':{mark.line + 1}' if mark else ''
         raise SweepError(f'{path.name}{line}: YAML syntax error: {problem}') from None
+    finally:
+        loader.dispose()
     lines: Dict[str, int] = {}
     if node is not None:
         _key_lines(node, '', lines)
