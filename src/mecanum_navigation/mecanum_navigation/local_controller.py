@@ -29,8 +29,11 @@ How it works (a DWB-like sampler, vectorised with numpy: one array op over all s
    cost >= 253 is invalid (the circular footprint is in the costmap's inflation), every
    cell a step can touch being checked (the two end cells and the two corner cells, so
    no cell is jumped over); NO_INFORMATION (255) and off-map points are invalid unless
-   allow_unknown; otherwise the highest cost / 252 is added (not within
-   near_goal_distance of the goal, as MPPI, so a goal in an inflated area is reached).
+   allow_unknown; otherwise the highest cost / 252 is added, less the highest cost the
+   path itself crosses within the trajectories' reach (a trajectory is not penalised for
+   the cost of the gap the plan goes through: standing still in front of a narrow gap
+   would otherwise score best for ever), and not within near_goal_distance of the goal
+   (as MPPI, so a goal in an inflated area is reached).
    Goal distance: from the trajectory's point at approach_time to the lookahead point
    (lookahead_dist along the path from the robot's nearest path point, or the goal;
    brought back along the path until the straight line to it stays out of inscribed
@@ -560,6 +563,10 @@ class LocalController:
         xs, ys, yaws = simulate_trajectories(pose, current, targets, p.acceleration, p.sim_time,
                                              self._steps, self._scratch, p.control_period)
         valid, obstacle = self._obstacle_critic(costmap, pose, xs, ys)
+        # The cost the path itself crosses within reach is not held against trajectories:
+        # in front of a narrow gap that the plan goes through, standing still would
+        # otherwise score best (a local minimum the robot never leaves).
+        obstacle = np.maximum(obstacle - self._path_cost(costmap, pose, local_path), 0.0)
         # Near the goal the soft obstacle cost is off (as MPPI's near_goal_distance), so a
         # goal in an inflated area is still reached; collisions stay invalid.
         scores = (0.0 if distance_to_goal < p.near_goal_distance else p.obstacle_weight) * \
@@ -828,6 +835,27 @@ class LocalController:
                             np.ascontiguousarray(near[:, 0], dtype=np.float32),
                             np.ascontiguousarray(near[:, 1], dtype=np.float32), limit)
         return None if best < 0 else int(best)
+
+    def _path_cost(self, costmap, pose: np.ndarray, local_path: np.ndarray) -> float:
+        """
+        Return the highest cost / 252 of the local path's points within reach of the robot.
+
+        Reach: the farthest a trajectory goes (sim_time at top speed). Inscribed and
+        lethal cells count as 252 (a path through them is the planner's, made on another
+        costmap); unknown and off-map points count as free. 0.0 without path points.
+        """
+        if local_path.shape[0] == 0:
+            return 0.0
+        near = local_path[np.hypot(local_path[:, 0] - pose[0], local_path[:, 1] - pose[1])
+                          <= self._reach]
+        cols = np.floor((near[:, 0] - costmap.origin_x_m) / costmap.resolution_m).astype(int)
+        rows = np.floor((near[:, 1] - costmap.origin_y_m) / costmap.resolution_m).astype(int)
+        inside = (cols >= 0) & (cols < costmap.size_x) & (rows >= 0) & (rows < costmap.size_y)
+        if not np.any(inside):
+            return 0.0
+        costs = np.asarray(costmap.costs)[rows[inside], cols[inside]].astype(np.int64)
+        costs[costs == UNKNOWN_COST] = FREE_COST
+        return float(min(int(np.max(costs)), MAX_NON_OBSTACLE)) / MAX_NON_OBSTACLE
 
     def _obstacle_critic(self, costmap, pose: np.ndarray, xs: np.ndarray,
                          ys: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:

@@ -512,6 +512,37 @@ def test_a_tight_corner_is_driven_around_not_stopped_at():
     assert max(abs(t[0]) for t in in_strip) < 0.1
 
 
+@pytest.mark.parametrize('start', [(2.73, 6.67), (2.9, 6.6), (3.1, 6.55)])
+def test_a_robot_stopped_in_front_of_a_narrow_gap_drives_through_it(start):
+    """
+    From standstill south-east of the 0.55 m gap between the bed and the wardrobe.
+
+    Every trajectory into the gap crosses cells of cost ~220 that standing still does
+    not: with the obstacle critic counting the whole cost, a zero twist scored best for
+    ever (a sweep of the apartment tour found the robot stopped there until the
+    progress checker gave up). The cost the path itself crosses is no longer held
+    against trajectories, so the robot drives through without touching inscribed cells.
+    """
+    from mecanum_navigation.costmap import (
+        Costmap2D, InflationLayer, LayeredCostmap, StaticLayer)
+    from mecanum_navigation.map_io import find_map_file, load_map
+    from mecanum_navigation.planner import GridPlanner
+
+    occupancy = load_map(find_map_file('apartment'))
+    costmap = Costmap2D.like_map(occupancy)
+    LayeredCostmap(costmap, [StaticLayer(occupancy), InflationLayer(0.2, 0.5, 4.0)]).update()
+    goal = (1.0, 7.6, math.pi / 2)
+    points = GridPlanner().plan(costmap, start, goal[:2]).points
+    path = np.array([(x, y, goal[2]) for x, y in points])
+
+    def check(pose):
+        assert costmap.cost_at(pose[0], pose[1]) < 253, pose
+    pose, log = drive(LocalController(PARAMS), costmap, path, (*start, math.pi / 2),
+                      cycles=600, check=check)
+    assert log[-1][2] == STATUS_GOAL_REACHED, (log[-1], pose)
+    assert math.hypot(pose[0] - goal[0], pose[1] - goal[1]) <= PARAMS.xy_goal_tolerance
+
+
 def lane_around_a_corner():
     """
     Return a 0.6 m lane turning round a block's corner whose edges fall short of cell borders.
