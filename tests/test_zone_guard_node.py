@@ -88,7 +88,7 @@ class Robot(LoopThread):
         super().__init__()
 
     def publish_sigma(self, sigma_m):
-        """Publish amcl_pose with a position standard deviation sigma_m (m) along y."""
+        """Publish amcl_pose with position standard deviations sigma_m along y, half along x."""
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = 'map'
         covariance = [0.0] * 36
@@ -186,14 +186,22 @@ def test_commands_are_kept_inside_the_zone(start_system, test_node, tmp_path):
             robot.command = command
             settle(out, state, command, 'ALLOW')
 
-        # amcl is unsure (sigma 0.05 m): the margin grows to 0.05 + 2 * 0.05 = 0.15 m.
+        # amcl is unsure (sigma 0.05 m along y, 0.025 m along x): toward the right border
+        # the error along its normal (x) counts: margin 0.05 + 2 * 0.025 = 0.10 m.
         robot.publish_sigma(0.05)
         robot.command = (0.5, 0.0, 0.0)
+        twist, scale = expected(zone, robot.pose, robot.command,
+                                margin + PARAMS['covariance_factor'] * 0.025)
+        assert scale == pytest.approx(0.4)
+        settle(out, state, twist, 'SCALE 0.40')
+        # Toward the top border (y = 4, 0.5 m away), y's 0.05 m: 0.05 + 2 * 0.05 = 0.15 m.
+        robot.pose = (2.0, 3.5, math.pi / 2)
         twist, scale = expected(zone, robot.pose, robot.command,
                                 margin + PARAMS['covariance_factor'] * 0.05)
         assert scale == pytest.approx(0.3)
         settle(out, state, twist, 'SCALE 0.30')
         robot.publish_sigma(0.0)
+        robot.pose = (3.5, 2.0, 0.0)
 
         # At the margin: toward the border stops, away and along pass.
         robot.pose = (4.0 - RADIUS_M - margin, 2.0, math.pi / 2)

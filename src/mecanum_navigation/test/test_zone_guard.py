@@ -125,6 +125,50 @@ def test_covariance_widens_the_margin():
     assert zone_guard.margin(math.inf) == 0.5
 
 
+def test_sigma_toward_the_border_is_along_the_normals_of_the_edges_within_reach():
+    along_x = [0.1 ** 2, 0.0, 0.0, 0.02 ** 2]   # sure across a corridor along x
+    # 0.4 m below the top edge (y = 4), 2 m from every vertex: the top edge's normal is y.
+    assert guard.sigma_toward_border(SQUARE, 2.0, 3.6, along_x, 0.6) == pytest.approx(0.02)
+    # The same covariance beside the right edge (x = 4): its normal is x.
+    assert guard.sigma_toward_border(SQUARE, 3.6, 2.0, along_x, 0.6) == pytest.approx(0.1)
+    # Both edges within reach: the larger.
+    assert guard.sigma_toward_border(SQUARE, 2.0, 2.0, along_x, 2.5) == pytest.approx(0.1)
+    # Correlated: variance along n = (0, 1) is yy; along (1, 0) xx (off-diagonal unused).
+    correlated = [0.01, 0.004, 0.004, 0.0025]
+    assert guard.sigma_toward_border(SQUARE, 2.0, 3.6, correlated, 0.6) == pytest.approx(0.05)
+    # A vertex within reach: the worst direction (eigenvalue 0.01208..., by hand).
+    worst = math.sqrt(0.00625 + math.hypot(0.00375, 0.004))
+    assert guard.sigma_toward_border(SQUARE, 3.7, 3.7, correlated, 0.6) == pytest.approx(worst)
+    # No edge within reach: the worst direction too; unusable covariances as sigma_xy.
+    assert guard.sigma_toward_border(SQUARE, 2.0, 2.0, along_x, 0.5) == pytest.approx(0.1)
+    assert math.isnan(guard.sigma_toward_border(SQUARE, 2.0, 3.6, [math.nan] * 4, 0.6))
+    assert guard.sigma_toward_border(SQUARE, 2.0, 3.6, [-1.0, 0.0, 0.0, 0.0], 0.6) == math.inf
+
+
+def test_drifting_toward_a_wall_in_a_corridor_along_it_is_slowed_not_stopped():
+    """
+    The apartment's strip behind the bed, as a sweep found it (amcl sigma 0.047 m along it).
+
+    The zone's north edge is at y = 8; the robot, 0.34 m from it, leaves the strip east
+    while turning, drifting 4 cm/s north. With the worst direction's sigma the margin
+    band (0.2 + 0.05 + 2 x 0.047 = 0.344 m) covered the strip's middle and every such
+    command was stopped (the navigator gave up: STUCK); across the strip amcl's sigma is
+    0.028 m, so the band ends at 0.306 m and the command is only slowed.
+    """
+    flat = make_zone([(0.0, 0.0), (10.0, 0.0), (10.0, 8.0), (0.0, 8.0)])
+    zone_guard = guard.ZoneGuard(flat, RADIUS, horizon_s=1.0, margin_m=0.05,
+                                 covariance_factor=2.0, max_margin_m=0.5)
+    covariance = [0.047 ** 2, 0.0, 0.0, 0.028 ** 2]
+    pose, twist = (1.3, 7.66, math.pi / 2), (0.04, -0.04, -0.1)
+    assert zone_guard.step(pose, twist, guard.sigma_xy(covariance)).scale == 0.0
+    result = zone_guard.step(pose, twist, covariance=covariance)
+    assert 0.5 < result.scale < 1.0
+    assert zone_guard.sigma(pose, twist, covariance) == pytest.approx(0.028)
+    # The allowed motion keeps the band across the strip: 0.2 + 0.05 + 2 x 0.028 m.
+    end = guard.integrate_twist(pose, *(result.scale * v for v in twist), 1.0)
+    assert 8.0 - end[1] >= 0.306 - 1e-6
+
+
 def test_sigma_xy_is_the_larger_eigenvalue_of_the_position_block():
     covariance = [0.0] * 36
     covariance[0], covariance[7] = 0.01, 0.04

@@ -31,9 +31,12 @@ grids, a search like a bisection but vectorised). The path of a turning twist re
 after one turn, so at most one turn is sampled.
 
 The margin widens with the localisation's uncertainty (:func:`guard_margin`):
-``margin_m + covariance_factor * sigma_xy``, capped at ``max_margin_m``, where sigma_xy
-is the standard deviation along the worst direction of the x-y position covariance
-(:func:`sigma_xy`).
+``margin_m + covariance_factor * sigma``, capped at ``max_margin_m``, where sigma is the
+standard deviation of the x-y position covariance along the normals of the border edges
+within reach (:func:`sigma_toward_border`; along the worst direction, :func:`sigma_xy`,
+near a vertex). In a corridor along a wall the localisation is unsure along it and sure
+across it: the worst direction's sigma put the margin band over the corridor's middle,
+where the guard then stopped every command with the least drift toward the wall.
 
 robot_controller checks a whole open-loop motion with :func:`path_stays_inside` (every
 sampled pose's footprint inside with the margin), whose end pose is
@@ -138,14 +141,12 @@ def integrate_twist(pose: Pose, vx: float, vy: float, wz: float, t: float) -> Po
     return float(xs[0]), float(ys[0]), yaw
 
 
-def sigma_xy(covariance: Sequence[float]) -> float:
+def xy_block(covariance: Sequence[float]) -> Tuple[float, float, float]:
     """
-    Return the position standard deviation (m) along the worst direction.
+    Return (xx, xy, yy) of the x-y position covariance (m^2), symmetrised.
 
     covariance: a row-major 6x6 pose covariance (36 values, x y z roll pitch yaw, as in
-    geometry_msgs/PoseWithCovariance) or a 2x2 x-y block (4 values). The result is the
-    square root of the larger eigenvalue of the x-y block; nan if it is not finite,
-    inf if the block is not a covariance (negative variance).
+    geometry_msgs/PoseWithCovariance) or a 2x2 x-y block (4 values); ValueError else.
     """
     values = np.asarray(covariance, dtype=np.float64).ravel()
     if values.size == 36:
@@ -154,13 +155,60 @@ def sigma_xy(covariance: Sequence[float]) -> float:
         xx, xy, yx, yy = values
     else:
         raise ValueError(f'covariance must have 36 (6x6) or 4 (2x2) values, got {values.size}')
-    if not all(math.isfinite(v) for v in (xx, xy, yx, yy)):
+    return float(xx), float(0.5 * (xy + yx)), float(yy)
+
+
+def sigma_xy(covariance: Sequence[float]) -> float:
+    """
+    Return the position standard deviation (m) along the worst direction.
+
+    covariance: as :func:`xy_block`. The result is the square root of the larger
+    eigenvalue of the x-y block; nan if it is not finite, inf if the block is not a
+    covariance (negative variance).
+    """
+    xx, off, yy = xy_block(covariance)
+    if not all(math.isfinite(v) for v in (xx, off, yy)):
         return math.nan
-    off = 0.5 * (xy + yx)
     largest = 0.5 * (xx + yy) + math.hypot(0.5 * (xx - yy), off)
     if xx < 0.0 or yy < 0.0 or largest < 0.0:
         return math.inf
     return math.sqrt(largest)
+
+
+def sigma_toward_border(zone: Zone, x: float, y: float, covariance: Sequence[float],
+                        reach_m: float) -> float:
+    """
+    Return the position standard deviation (m) in the directions that matter at (x, y).
+
+    What brings the footprint nearer a straight border edge is the position error along
+    that edge's normal, sqrt(n^T C n), not along the worst direction: in a corridor
+    along a wall the localisation is often unsure along the corridor and sure across
+    it. The result is the largest of those over the border edges within reach_m of
+    (x, y) (m, map frame; the guard passes the travel over its horizon plus the
+    footprint radius plus the margin of the worst direction, so no other edge can come
+    within the required clearance). Where a vertex is within reach_m (the error toward a
+    corner has no one direction), or no edge is, it is :func:`sigma_xy`, the worst
+    direction. nan / inf as sigma_xy for an unusable covariance.
+    """
+    worst = sigma_xy(covariance)
+    if not math.isfinite(worst) or not (math.isfinite(x) and math.isfinite(y)):
+        return worst
+    edges = zone.edges()
+    x1, y1, x2, y2 = edges[:, 0], edges[:, 1], edges[:, 2], edges[:, 3]
+    dx, dy = x2 - x1, y2 - y1
+    length = np.hypot(dx, dy)
+    vertex_distance = np.hypot(x1 - x, y1 - y)
+    if np.any(vertex_distance <= reach_m):
+        return worst
+    t = np.clip(((x - x1) * dx + (y - y1) * dy) / np.maximum(length * length, 1e-18),
+                0.0, 1.0)
+    near = np.hypot(x1 + t * dx - x, y1 + t * dy - y) <= reach_m
+    if not np.any(near):
+        return worst
+    nx, ny = -dy[near] / length[near], dx[near] / length[near]
+    xx, off, yy = xy_block(covariance)
+    variance = float(np.max(nx * nx * xx + 2.0 * nx * ny * off + ny * ny * yy))
+    return math.sqrt(max(variance, 0.0))
 
 
 def guard_margin(margin_m: float, covariance_factor: float, sigma_xy_m: float,
@@ -410,11 +458,36 @@ class ZoneGuard:
         return guard_margin(self.margin_m, self.covariance_factor, sigma_xy_m,
                             self.max_margin_m)
 
-    def step(self, pose: Pose, twist: Twist2D, sigma_xy_m: float = 0.0) -> GuardResult:
-        """Return the decision for twist at pose (sigma_xy_m: the localisation's, m)."""
+    def sigma(self, pose: Pose, twist: Twist2D, covariance: Sequence[float]) -> float:
+        """
+        Return the localisation's standard deviation (m) the margin uses at pose.
+
+        :func:`sigma_toward_border` of the covariance within the reach of this step:
+        the travel over horizon_s, the footprint radius and the worst direction's margin.
+        """
+        worst = sigma_xy(covariance)
+        if self.zone is None or len(twist) != 3 or not _finite(*twist) or len(pose) != 3 \
+                or not _finite(*pose) or not math.isfinite(worst):
+            return worst
+        reach = (math.hypot(twist[0], twist[1]) * self.horizon_s + self.footprint_radius_m
+                 + self.margin(worst))
+        return sigma_toward_border(self.zone, float(pose[0]), float(pose[1]), covariance,
+                                   reach)
+
+    def step(self, pose: Pose, twist: Twist2D, sigma_xy_m: float = 0.0,
+             covariance: Optional[Sequence[float]] = None) -> GuardResult:
+        """
+        Return the decision for twist at pose.
+
+        The margin grows with the localisation's uncertainty: sigma_xy_m (m), or, when
+        the position covariance is given (36 or 4 values, see :func:`xy_block`), its
+        sigma toward the border (:meth:`sigma`), which then replaces sigma_xy_m.
+        """
         if self.zone is None:
             if len(twist) != 3 or not _finite(*twist):
                 return GuardResult(0.0, REASON_INVALID_COMMAND)
             return GuardResult(1.0, REASON_CLEAR)
+        if covariance is not None:
+            sigma_xy_m = self.sigma(pose, twist, covariance)
         return guard_scale(self.zone, pose, twist, self.footprint_radius_m,
                            self.margin(sigma_xy_m), self.horizon_s)

@@ -11,8 +11,9 @@ factor in [0, 1] that keeps the footprint circle (``footprint_radius_m`` of
 motor_params.yaml, declared read-only with the robot's other parameters) at least
 ``min(footprint_radius_m + margin, its clearance now)`` from the zone's border along the
 motion predicted for ``horizon_s`` (1.0 s). The margin is ``margin_m`` (0.05 m) +
-``covariance_factor`` (2.0) x the localisation's position standard deviation (the worst
-direction of the x-y covariance of ``pose_covariance_topic``, 'amcl_pose',
+``covariance_factor`` (2.0) x the localisation's position standard deviation toward the
+border (along the normals of the border edges within reach, the worst direction near a
+vertex; of the x-y covariance of ``pose_covariance_topic``, 'amcl_pose',
 geometry_msgs/PoseWithCovarianceStamped, latched; '' = none), at most ``max_margin_m``
 (0.5 m).
 
@@ -127,6 +128,8 @@ class ZoneGuardNode(Node):
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
         self._state_logs = KeyedThrottle(STATE_LOG_PERIOD_S)
         self.sigma_xy_m = 0.0          # no covariance heard yet: margin_m alone
+        self.covariance_xy = None      # (xx, xy, yy) m^2 of the last covariance heard
+        self.sigma_used_m = 0.0        # sigma toward the border of the last command
         self.covariance_count = 0
         self.commands = 0
         self._state = ('', '')         # (kind, text) of the last command's state
@@ -217,6 +220,7 @@ class ZoneGuardNode(Node):
             self._warn('covariance', f'unusable pose covariance (sigma_xy {sigma}): using '
                        f'max_margin_m {self.guard.max_margin_m:g} m')
         self.sigma_xy_m = sigma
+        self.covariance_xy = guard.xy_block(msg.pose.covariance)
         self.covariance_count += 1
 
     def on_command(self, msg: Twist) -> None:
@@ -244,7 +248,12 @@ class ZoneGuardNode(Node):
             self._set_state(f'STOP {reason}', f'STOP {reason}', DiagnosticStatus.ERROR)
             return
         twist = (msg.linear.x, msg.linear.y, msg.angular.z)
-        result = self.guard.step(pose, twist, self.sigma_xy_m)
+        if self.covariance_xy is not None:
+            xx, xy, yy = self.covariance_xy
+            self.sigma_used_m = self.guard.sigma(pose, twist, (xx, xy, xy, yy))
+        else:
+            self.sigma_used_m = self.sigma_xy_m
+        result = self.guard.step(pose, twist, self.sigma_used_m)
         self._last_result = result
         if all(v == 0.0 for v in values) or result.scale >= 1.0:
             self.cmd_pub.publish(msg)
@@ -277,9 +286,11 @@ class ZoneGuardNode(Node):
                            KeyValue(key='distance to the border (m)',
                                     value=f'{clearance - self.guard.footprint_radius_m:.3f}')]
             values += [KeyValue(key='sigma_xy (m)', value=f'{self.sigma_xy_m:.3f}'),
+                       KeyValue(key='sigma toward the border (m)',
+                                value=f'{self.sigma_used_m:.3f}'),
                        KeyValue(key='covariance messages', value=str(self.covariance_count)),
                        KeyValue(key='margin (m)',
-                                value=f'{self.guard.margin(self.sigma_xy_m):.3f}')]
+                                value=f'{self.guard.margin(self.sigma_used_m):.3f}')]
             if self._last_result is not None:
                 values.append(KeyValue(key='last scale',
                                        value=f'{self._last_result.scale:.3f}'))
