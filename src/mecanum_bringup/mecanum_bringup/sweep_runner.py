@@ -19,7 +19,8 @@ of every criterion with its Wilson 95 % interval.
 
 ``--jobs N`` runs N variants at once on this machine (worker processes). ``--ray
 ADDRESS`` runs them as Ray tasks on a cluster (``auto``, ``ray://host:10001``, or a
-``host:port`` of ``ray start --head``): each task is one whole variant run on one node
+``host:port`` of ``ray start --head``; ``local:N`` starts Ray's own N-node test cluster on
+this machine for the sweep, 1 CPU a node): each task is one whole variant run on one node
 (1 CPU), its row streamed back into the store as it finishes; Ray runs the task again
 elsewhere when its worker or node dies (``--ray-retries``, 3). The run folders stay on
 the node that ran the variant (the row's worker names it). Ray is an extra: installed
@@ -31,12 +32,14 @@ Exit codes: 0 every variant has a row (whatever their verdicts: a sweep measures
 
 import argparse
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+import contextlib
 from dataclasses import dataclass
 import json
 import math
 import multiprocessing
 import os
 from pathlib import Path
+import re
 import shutil
 import signal
 import socket
@@ -316,9 +319,49 @@ def run_on_ray(address: str, todo: Sequence[PreparedVariant], out_dir: Path,
     except ImportError:
         raise SystemExit('run_sweep: --ray needs Ray (pip install -r '
                          'requirements/ros-jazzy-pip.py3XX.lock.txt, as make setup does)')
-    if not ray.is_initialized():
-        ray.init(address=address, log_to_driver=False,
-                 runtime_env={'env_vars': _ros_environment()})
+    with _ray_cluster(address) as address:
+        if not ray.is_initialized():
+            ray.init(address=address, log_to_driver=False,
+                     runtime_env={'env_vars': _ros_environment()})
+        return _run_ray_tasks(ray, address, todo, out_dir, options, retries, on_row, say)
+
+
+#: --ray local:N: a Ray test cluster of N nodes (1 CPU each) on this machine.
+LOCAL_RAY = re.compile(r'local:([1-9][0-9]?)')
+
+
+@contextlib.contextmanager
+def _ray_cluster(address: str):
+    """
+    Yield the address to connect to: address itself, or a local N-node test cluster's.
+
+    'local:N' starts ray.cluster_utils.Cluster (Ray's own multi-node cluster on one
+    machine, N nodes of 1 CPU) for the sweep and shuts it down after: the cluster path,
+    node failures included, without `ray start` on several machines.
+    """
+    match = LOCAL_RAY.fullmatch(address)
+    if match is None:
+        yield address
+        return
+    import ray
+    from ray.cluster_utils import Cluster
+    cluster = Cluster(initialize_head=True, head_node_args={'num_cpus': 1})
+    try:
+        for _ in range(int(match.group(1)) - 1):
+            cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        yield cluster.address
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        cluster.shutdown()
+
+
+def _run_ray_tasks(ray, address: str, todo: Sequence[PreparedVariant], out_dir: Path,
+                   options: Dict[str, Any], retries: int,
+                   on_row: Callable[[VariantRow], None],
+                   say: Callable[[str], None]) -> List[str]:
+    """Submit the variants as tasks to the connected cluster; stream rows back."""
     resources = ray.cluster_resources()
     say(f'Ray cluster at {address}: {len(ray.nodes())} node(s), '
         f'{resources.get("CPU", 0):g} CPUs')
@@ -434,7 +477,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     where.add_argument('--jobs', type=int, default=1,
                        help='variants at once on this machine (default 1)')
     where.add_argument('--ray', metavar='ADDRESS',
-                       help="run on a Ray cluster: 'auto', host:port or ray://host:10001")
+                       help="run on a Ray cluster: 'auto', host:port or ray://host:10001; "
+                       "'local:N' starts Ray's N-node test cluster on this machine")
     parser.add_argument('--ray-retries', type=int, default=3,
                         help='times Ray runs a task again when its worker or node dies')
     parser.add_argument('--real-time-factor', type=parse_real_time_factor, default=0.0,
@@ -445,6 +489,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f'--jobs must be at least 1, got {args.jobs}')
+    if args.ray and args.ray.startswith('local:') and not LOCAL_RAY.fullmatch(args.ray):
+        parser.error(f'--ray local:N needs N from 1 to 99 nodes, got {args.ray!r}')
     try:
         sweep = load_sweep(args.sweep_file)
     except SweepError as error:

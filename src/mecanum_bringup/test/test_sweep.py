@@ -243,3 +243,13 @@ def test_the_progress_line_counts_failures_and_estimates_the_rest(tmp_path):
     assert lines[-1].startswith('[#########...............] 4/10 (1 failed) 1:00 elapsed, '
                                 'ETA 3:00'), lines[-1]
     assert lines[-1].endswith('s_0003: UNEXPECTED')
+
+
+@pytest.mark.parametrize('address', ['local:0', 'local:two', 'local:100'])
+def test_a_bad_local_ray_cluster_size_is_refused_before_anything_runs(tmp_path, capsys,
+                                                                      address):
+    from mecanum_bringup.sweep_runner import main
+    with pytest.raises(SystemExit) as stopped:
+        main([str(tmp_path / 'never_read.yaml'), '--ray', address])
+    assert stopped.value.code == 2
+    assert f"--ray local:N needs N from 1 to 99 nodes, got '{address}'" in capsys.readouterr().err
