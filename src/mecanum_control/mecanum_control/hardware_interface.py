@@ -63,6 +63,8 @@ READ_WAIT_S = 0.05
 #: Command periods without motor_efforts after which the keep-alive repeats the command
 #: (so the longest gap between two commands is STREAM_GAP_PERIODS + 1 periods).
 STREAM_GAP_PERIODS = 1.5
+#: A frame the line takes no byte of for this long (s) means the link is stuck.
+WRITE_TIMEOUT_S = 0.1
 #: Messages only the board sends: receiving them proves the board is alive.
 BOARD_MESSAGES = (proto.EncoderTicks, proto.ImuSample, proto.BoardStatus)
 
@@ -261,7 +263,7 @@ class HardwareInterface(Node):
             with self._io_lock:
                 if self._serial is not port:
                     return False  # the link was dropped meanwhile
-                port.write(frame)
+                write_all(port.fileno(), frame, WRITE_TIMEOUT_S)
         except (serial.SerialException, OSError, TypeError, ValueError) as error:
             self._lose_link(port, f'write failed: {error}')
             return False
@@ -278,7 +280,7 @@ class HardwareInterface(Node):
             # mid-run saw 'no valid frame for 27 s' at once). The timer retries.
             return
         try:
-            port = serial.Serial(self.port, self.baud_rate, timeout=0.05, write_timeout=0.1)
+            port = serial.Serial(self.port, self.baud_rate, timeout=0.05, write_timeout=0)
         except (serial.SerialException, OSError, ValueError) as error:
             if self._disconnect_reason != str(error):
                 self._disconnect_reason = str(error)
@@ -287,7 +289,8 @@ class HardwareInterface(Node):
             return
         try:
             port.reset_input_buffer()
-            port.write(b'\x00')  # delimiter: the board starts decoding at a clean frame
+            # delimiter: the board starts decoding at a clean frame
+            write_all(port.fileno(), b'\x00', WRITE_TIMEOUT_S)
         except (serial.SerialException, OSError) as error:
             port.close()
             self._disconnect_reason = str(error)
@@ -334,7 +337,8 @@ class HardwareInterface(Node):
             zero = proto.encode_frame(stop, self._next_seq(stop))
         with self._io_lock:
             try:
-                port.write(zero)  # best effort: the board's own timeout is the guarantee
+                # best effort: the board's own timeout is the guarantee
+                write_all(port.fileno(), zero, WRITE_TIMEOUT_S)
             except (serial.SerialException, OSError, TypeError, ValueError):
                 pass
             try:
@@ -554,6 +558,36 @@ def read_available(fd: int, timeout_s: float) -> bytes:
     if not data:
         raise OSError(errno.EIO, 'the device reports data but returns none (unplugged?)')
     return data
+
+
+def write_all(fd: int, data: bytes, timeout_s: float) -> None:
+    """
+    Write all of data to a non-blocking port (pyserial opens it so), or raise on a stuck line.
+
+    serial.SerialTimeoutException when the line takes no byte for timeout_s (its output
+    buffer stays full: nobody reads the other end). pyserial's write(write_timeout=...)
+    checks its deadline after each write, also after one that took everything, so a
+    process descheduled longer than write_timeout (a loaded machine: 2 simulations on 2
+    cores) got 'Write timeout' for a frame that had gone out, and dropped the link.
+    """
+    view = memoryview(data)
+    deadline = None
+    while view:
+        try:
+            written = os.write(fd, view)
+        except BlockingIOError:
+            written = 0
+        view = view[written:]
+        if not view:
+            return
+        now = time.monotonic()
+        if written or deadline is None:
+            deadline = now + timeout_s
+        elif now >= deadline:
+            raise serial.SerialTimeoutException(
+                f'Write timeout: the line took nothing for {timeout_s:g} s '
+                f'({len(view)} of {len(data)} bytes left)')
+        select.select([], [fd], [], deadline - now)
 
 
 def main(args=None) -> int:
