@@ -198,7 +198,7 @@ def test_the_shipped_sweep_has_50_valid_variants_of_the_tour(tmp_path):
     assert len(prepared) == 50
     for item in prepared:
         steps = item.scenario_document['scenario']['steps']
-        assert len([s for s in steps if 'goal' in s]) == 4
+        assert len([s for s in steps if 'goal' in s]) == 3
 
 
 def row(index: int, status: str = 'OK') -> VariantRow:
