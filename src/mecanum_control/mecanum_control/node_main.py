@@ -109,6 +109,8 @@ def signals_deferred() -> Iterator[threading.Event]:
 DRAIN_ROUNDS_MAX = 1000
 #: Every how many /clock messages ClockAnswer looks for new subscriptions and timers.
 INSTRUMENT_EVERY_CLOCKS = 50
+#: Wall seconds after which an answer held back by work left is logged (what holds it).
+STUCK_REPORT_S = 2.0
 #: Wall seconds between two /clock_alive messages of a process.
 ALIVE_PERIOD_S = 1.0
 
@@ -159,6 +161,9 @@ class ClockAnswer:
         self._expected: Dict[int, int] = {}   # subscription id: own messages on the way
         self._pending: Optional[Clock] = None
         self._pending_ns = 0
+        self._stuck_since: Optional[float] = None   # wall time the answer was first due
+        self._stuck_clock_ns = -1
+        self._stuck_reported = -1
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.publisher = self.nodes[0].create_publisher(Header, '/clock_ack', reliable)
         self.alive_publisher = self.nodes[0].create_publisher(Header, '/clock_alive', reliable)
@@ -256,6 +261,30 @@ class ClockAnswer:
                     return True
         return False
 
+    def _report_stuck(self) -> None:
+        """Log (once per /clock) what holds the answer back after STUCK_REPORT_S of wall time."""
+        now = time.monotonic()
+        if self._stuck_since is None or self._stuck_clock_ns != self._pending_ns:
+            self._stuck_since, self._stuck_clock_ns = now, self._pending_ns
+            return
+        if self._stuck_reported == self._pending_ns or now - self._stuck_since < STUCK_REPORT_S:
+            return
+        self._stuck_reported = self._pending_ns
+        behind, due = [], []
+        for node in self.nodes:
+            if node.get_clock().now().nanoseconds < self._pending_ns:
+                behind.append(node.get_name())
+            for timer in node.timers:
+                left_ns = timer.time_until_next_call()
+                if left_ns is not None and left_ns <= 0:
+                    callback = getattr(timer.callback, '__wrapped__', timer.callback)
+                    due.append(f'{node.get_name()}.{getattr(callback, "__name__", callback)}'
+                               f' ({left_ns * 1e-9:+.3f} s)')
+        self.nodes[0].get_logger().warning(
+            f'lockstep: /clock {self._pending_ns * 1e-9:.2f} s not answered after '
+            f'{now - self._stuck_since:.1f} s: clocks behind {behind}, timers due but not '
+            f'run {due}')
+
     def after_spin(self, executor) -> None:
         """Take a held /clock (1, 2 above) or answer the pending one once its work is done."""
         if self._deferred:
@@ -274,7 +303,10 @@ class ClockAnswer:
             self._clocks_taken += 1
             if self._clocks_taken % INSTRUMENT_EVERY_CLOCKS == 0:
                 self._instrument()     # entities created since (once a simulated second)
-        if self._pending is None or self.work_left():
+        if self._pending is None:
+            return
+        if self.work_left():
+            self._report_stuck()
             return
         self.drain(executor)
         if self._deferred or self.work_left():
