@@ -14,6 +14,9 @@ lockstep does.
    time, also when it arrives while the stack finishes the time before.
 4. With node_main.share_time_source (as spin_waking does), one /clock subscription drives
    both nodes' clocks, and the chain of 1. still runs before the answer.
+5. /clock messages that arrive together (a busy process) are taken as one: a timer runs
+   once, and again at each following /clock (the EventsExecutor ran it once per /clock
+   message, then skipped as many periods).
 """
 
 import threading
@@ -46,6 +49,7 @@ class Stack:
         self.first = Node('chain_start', context=self.context, parameter_overrides=sim_time)
         self.second = Node('chain_rest', context=self.context, parameter_overrides=sim_time)
         self.chain_done = []     # (simulated time ns when the chain's end ran, data)
+        self.timer_calls = []    # simulated time ns of each call of the chain's timer
         self.forwarded = []      # (simulated time ns when 'forwarded' was handled, data)
         # Chain 1: timer (first) -> a (second) -> b (first) -> c (second) -> record.
         self.pub_a = self.first.create_publisher(Int64, 'a', RELIABLE)
@@ -78,6 +82,7 @@ class Stack:
         return node.get_clock().now().nanoseconds
 
     def _on_timer(self):
+        self.timer_calls.append(self._now_ns(self.first))
         self.pub_a.publish(Int64(data=self._now_ns(self.first)))
 
     def _on_slow(self, msg: Int64):
@@ -238,3 +243,76 @@ def test_a_shared_time_source_is_one_clock_subscription_for_every_node(stack_and
     clock_ns = start_lockstep(stack, simulator)
     assert stack.first.get_clock().now().nanoseconds == clock_ns
     assert stack.second.get_clock().now().nanoseconds == clock_ns
+
+
+def test_clocks_that_arrive_while_busy_run_a_timer_once_and_skip_no_period(
+        stack_and_simulator):
+    """Three /clock messages reach the stack while it is busy (the 'slow' callback)."""
+    stack, simulator = stack_and_simulator
+    clock_ns = start_lockstep(stack, simulator)
+    for _ in range(5):
+        simulator.slow_pub.publish(Int64(data=clock_ns))
+        for _ in range(3):
+            clock_ns += PERIOD_NS
+            simulator.publish_clock(clock_ns)
+        assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
+        together = clock_ns
+        for _ in range(3):
+            clock_ns += PERIOD_NS
+            simulator.publish_clock(clock_ns)
+            assert simulator.wait_for_ack(clock_ns), f'no answer to /clock {clock_ns} ns'
+        calls = [stack.timer_calls.count(t) for t in range(together, clock_ns + 1, PERIOD_NS)]
+        assert calls == [1, 1, 1, 1], (
+            f'timer calls at /clock {together} ns (3 taken together) and the 3 after: {calls}')
+
+
+@pytest.mark.parametrize('lockstep', [True, False], ids=['lockstep', 'free_running'])
+def test_clocks_taken_in_one_round_run_a_timer_once_and_skip_no_period(ros_env, monkeypatch,
+                                                                       lockstep):
+    """
+    Three /clock messages come in one round of the executor (a busy process), 20 times.
+
+    rclpy's EventsExecutor dispatches a timer once per jump of its clock and calls it
+    again even when it is no longer due, which pushes its next call as many periods
+    ahead: taking the three one after the other ran a 50 Hz timer 3 times, then skipped
+    2 periods (in lockstep hardware_interface then sent no command for the next /clock
+    and simulated time stood still for 10 s: 1 sweep run in 16). ClockAnswer takes the
+    newest only, in lockstep and outside it.
+    """
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=int(ros_env['ROS_DOMAIN_ID']))
+    node = Node('timed', context=context,
+                parameter_overrides=[Parameter('use_sim_time', value=True)])
+    calls = []
+    node.create_timer(PERIOD_NS * 1e-9, lambda: calls.append(node.get_clock().now().nanoseconds))
+    listener = Node('simulator', context=context)
+    if lockstep:
+        listener.create_subscription(Header, '/clock_ack', lambda msg: None, RELIABLE)
+    executor = make_executor(context)
+    executor.add_node(node)
+    answer = answer_clock([node], 'timed')
+    clock_callback = next(sub.callback for sub in node.subscriptions
+                          if sub.topic_name == '/clock')
+    try:
+        deadline = time.monotonic() + 10.0
+        while (answer.publisher.get_subscription_count() > 0) != lockstep:
+            assert time.monotonic() < deadline, 'the /clock_ack subscription was not matched'
+            time.sleep(0.01)
+        clock_ns, counts = 10 ** 9, []
+        for round_ in range(60):
+            for _ in range(3 if round_ % 3 == 0 else 1):
+                clock_ns += PERIOD_NS
+                sec, nanosec = divmod(clock_ns, 10 ** 9)
+                clock_callback(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+            before = len(calls)
+            for _ in range(20):
+                answer.after_spin(executor)
+                executor.spin_once(timeout_sec=0.0)
+            counts.append(len(calls) - before)
+        assert counts[1:] == [1] * 59, f'timer calls per round (3 clocks every third): {counts}'
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        listener.destroy_node()
+        rclpy.try_shutdown(context=context)

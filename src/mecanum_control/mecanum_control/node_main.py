@@ -54,9 +54,10 @@ def _raise_keyboard_interrupt(_signum, _frame):
 
 
 def raise_keyboard_interrupt_on_signals() -> None:
-    """Turn SIGTERM and SIGINT (also when inherited as ignored) into KeyboardInterrupt."""
+    """Turn SIGTERM and SIGINT (also inherited as ignored or blocked) into KeyboardInterrupt."""
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
 
 
 def close_node(node: Node) -> None:
@@ -128,7 +129,9 @@ class ClockAnswer:
        came after the /clock: its callback is held and runs once the new time is taken
        (the process's publishers are counted per local subscription, so what is left
        over is from outside);
-    2. then the nodes' time source(s) take the new time (:func:`share_time_source`);
+    2. then the nodes' time source(s) take the new time (:func:`share_time_source`): the
+       newest /clock only, when several came together (:meth:`_take_newest`; also
+       outside lockstep, after each round of the executor);
     3. the timers that time made due run (the executor), then what they publish to this
        process is handled (drain again);
     4. then the answer goes out. What the process published for that time is then on its
@@ -155,7 +158,8 @@ class ClockAnswer:
         self._clock_calls = 0     # /clock callbacks run
         self._idle_at = 0         # self.calls when the executor's queue was last empty
         self._clocks_taken = 0
-        self._deferred: List[Tuple[Callable, Clock]] = []   # held /clock: outside
+        self._deferred: List[Tuple[Callable, Callable, Clock]] = []   # held /clock
+        self._free: Dict[Callable, Callable] = {}   # not in lockstep: newest /clock each
         self._held: List[Callable] = []                      # messages wait for it
         self._local_subscriptions: Dict[str, List[int]] = {}   # topic: subscription ids
         self._expected: Dict[int, int] = {}   # subscription id: own messages on the way
@@ -235,9 +239,28 @@ class ClockAnswer:
         def deferred(msg: Clock, *info):
             self._clock_calls += 1
             if self.publisher.get_subscription_count() == 0:
-                return callback(msg, *info)     # not in lockstep: take it at once
-            self._deferred.append((functools.partial(callback, msg, *info), msg))
+                # Not in lockstep: taken after this round of the executor (the newest).
+                self._free[callback] = functools.partial(callback, msg, *info)
+                return None
+            self._deferred.append((callback, functools.partial(callback, msg, *info), msg))
         return deferred
+
+    @staticmethod
+    def _take_newest(takes: Sequence[Tuple[Callable, Callable]]) -> None:
+        """
+        Take each time source's newest /clock only: one clock jump a round.
+
+        rclpy's EventsExecutor dispatches a timer once per jump of its clock and calls it
+        again even when it is no longer due, which pushes its next call as many periods
+        ahead: after /clock messages taken together a 50 Hz timer ran 3 times, then
+        skipped 2 periods (in lockstep hardware_interface then sent no command for the
+        next /clock and simulated time stood still for 10 s).
+        """
+        newest: Dict[Callable, Callable] = {}
+        for callback, take in takes:
+            newest[callback] = take
+        for take in newest.values():
+            take()
 
     def drain(self, executor) -> None:
         """Run the executor without waiting until a round calls no callback."""
@@ -287,18 +310,20 @@ class ClockAnswer:
 
     def after_spin(self, executor) -> None:
         """Take a held /clock (1, 2 above) or answer the pending one once its work is done."""
+        if self._free:
+            free, self._free = self._free, {}
+            self._take_newest(list(free.items()))
         if self._deferred:
             for catch_up in self._catch_ups:
                 if catch_up():
                     self._idle_at = -1     # it published: drain
             self.drain(executor)
             deferred, self._deferred = self._deferred, []
-            for take, _ in deferred:
-                take()
+            self._take_newest([(callback, take) for callback, take, _ in deferred])
             held, self._held = self._held, []
             for run in held:      # outside messages that came after the /clock, at its time
                 run()
-            self._pending = deferred[-1][1]
+            self._pending = deferred[-1][2]
             self._pending_ns = self._pending.clock.sec * 10 ** 9 + self._pending.clock.nanosec
             self._clocks_taken += 1
             if self._clocks_taken % INSTRUMENT_EVERY_CLOCKS == 0:
