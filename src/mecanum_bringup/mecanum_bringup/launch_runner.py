@@ -281,6 +281,10 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    # A blocked signal stays blocked across exec: a Ray worker starts its children with
+    # SIGINT blocked, and the runner never saw the Ctrl-C that ends a scenario (it was
+    # killed 20 s later, its nodes with it). The nodes inherit the mask set here.
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     try:
         return supervisor.run()
     finally:

@@ -154,6 +154,27 @@ def test_children_die_with_a_killed_runner(prefix, tmp_path):
     assert wait_for(lambda: not alive(node_pid), timeout=5.0)
 
 
+def test_a_runner_started_with_sigint_blocked_still_stops_on_ctrl_c(prefix, tmp_path):
+    """A Ray worker starts its children with SIGINT blocked (the mask survives exec)."""
+    launch = tmp_path / 'one.launch.yaml'
+    launch.write_text('launch:\n- node: {pkg: demo, exec: talker, name: t}\n')
+    runner = subprocess.Popen(
+        [sys.executable, '-m', 'mecanum_bringup.launch_runner', str(launch)],
+        env=environ(prefix), stdout=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}))
+    try:
+        line = ''
+        while 'started t (pid' not in line:
+            line = runner.stdout.readline()
+            assert line, 'runner ended before starting the node'
+        runner.send_signal(signal.SIGINT)
+        rest = runner.communicate(timeout=10)[0]
+    finally:
+        runner.kill()
+    assert '[runner] shutting down (received SIGINT)' in rest
+    assert runner.returncode == 0
+
+
 def test_runner_cli_reports_bad_files(tmp_path, capsys):
     from mecanum_bringup.launch_runner import main
     bad = tmp_path / 'bad.launch.yaml'
