@@ -19,7 +19,8 @@ import xml.etree.ElementTree as ElementTree
 
 from mecanum_bringup.scenario_report import one_line, xml_text
 from mecanum_bringup.sweep_stats import (
-    axis_rates, Change, criterion_rates, failed_criteria, Rate, value_label, worst_variants)
+    axis_rates, Change, criterion_rates, failed_criteria, Rate, value_label, VariantChange,
+    worst_variants)
 from mecanum_bringup.sweep_store import VariantRow
 
 PathLike = Union[str, Path]
@@ -94,6 +95,25 @@ def compare_table(changes: Sequence[Change]) -> str:
     lines.append(f'{len(worse)} worse{": " + ", ".join(worse) if worse else ""}; '
                  f'{len(better)} better{": " + ", ".join(better) if better else ""} '
                  '(beyond the 95 % intervals)')
+    return '\n'.join(lines) + '\n'
+
+
+def variant_changes_table(changes: Sequence[VariantChange], both: int) -> str:
+    """
+    Return the variants whose status differs between sweeps A and B, one line each.
+
+    Each line: the variant, A's and B's status and, for a failed one, its first failure
+    (or error); then how many of the variants run in both kept their status.
+    """
+    lines = []
+    for change in changes:
+        parts = []
+        for label, row in (('A', change.a), ('B', change.b)):
+            why = row.first_failure or row.error
+            parts.append(f'{label} {row.status}' + (f' ({one_line(why, 120)})' if why else ''))
+        lines.append(f'{change.name}: ' + '; '.join(parts))
+    lines.append(f'{both - len(changes)} of {both} variants run in both sweeps have the same '
+                 f'status; {len(changes)} another')
     return '\n'.join(lines) + '\n'
 
 

@@ -520,12 +520,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 def compare_main(argv: Optional[Sequence[str]] = None) -> int:
     """Compare two sweeps' failure rates (before and after a change); return the exit code."""
-    from mecanum_bringup.sweep_report import compare_table
-    from mecanum_bringup.sweep_stats import compare
+    from mecanum_bringup.sweep_report import compare_table, variant_changes_table
+    from mecanum_bringup.sweep_stats import compare, variant_changes
     from mecanum_bringup.sweep_store import read_rows
     parser = argparse.ArgumentParser(
         prog='compare_sweeps', description='Say which failure rates changed between two '
-        'sweeps beyond their 95 %% intervals (A: before, B: after).')
+        'sweeps beyond their 95 %% intervals (A: before, B: after), and which variants of '
+        'both got another status.')
     parser.add_argument('before', help='results folder (or results.sqlite) of sweep A')
     parser.add_argument('after', help='results folder (or results.sqlite) of sweep B')
     args = parser.parse_args(argv)
@@ -536,6 +537,7 @@ def compare_main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
     changes = compare(*rows)
     print(compare_table(changes))
+    print(variant_changes_table(*variant_changes(*rows)))
     return 1 if any(change.verdict == 'worse' for change in changes) else 0
 
 

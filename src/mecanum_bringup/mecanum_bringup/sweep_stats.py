@@ -98,6 +98,37 @@ class Change:
     verdict: str
 
 
+@dataclass(frozen=True)
+class VariantChange:
+    """A variant of both sweeps (same index and values) whose status differs: A's, B's."""
+
+    index: int
+    name: str
+    a: VariantRow
+    b: VariantRow
+
+
+def variant_changes(rows_a: Sequence[VariantRow], rows_b: Sequence[VariantRow]
+                    ) -> Tuple[List[VariantChange], int]:
+    """
+    Return the variants run in both sweeps with another status in B, and how many are in both.
+
+    Paired by index, and only when the variant's values are the same in both (the same
+    sweep file, e.g. run before and after a change, or here and on a cluster); a
+    variant in one sweep only is left out. Statuses: OK, UNEXPECTED, ERROR.
+    """
+    by_index = {row.index: row for row in rows_a}
+    changes, both = [], 0
+    for b in sorted(rows_b, key=lambda row: row.index):
+        a = by_index.get(b.index)
+        if a is None or a.values != b.values:
+            continue
+        both += 1
+        if a.status != b.status:
+            changes.append(VariantChange(b.index, b.name, a, b))
+    return changes, both
+
+
 def criterion_order(names: Sequence[str]) -> List[str]:
     """Return the names: 'verdict', 'step N' by N, then the others alphabetically."""
     def key(name: str) -> Tuple[int, int, str]:

@@ -6,8 +6,8 @@ import xml.etree.ElementTree as ElementTree
 
 from matplotlib.image import imread
 from mecanum_bringup.sweep_report import (
-    compare_table, junit_xml, plot_axis_rates, rates_table, write_report)
-from mecanum_bringup.sweep_stats import compare
+    compare_table, junit_xml, plot_axis_rates, rates_table, variant_changes_table, write_report)
+from mecanum_bringup.sweep_stats import compare, variant_changes
 from mecanum_bringup.sweep_store import read_rows, ResultsStore, VariantRow
 import pytest
 
@@ -67,6 +67,16 @@ def test_compare_table_names_the_change(rows):
     same = compare_table(compare(rows, rows)).splitlines()
     assert all(line.endswith('same') for line in same[2:-1])
     assert same[-1] == '0 worse; 0 better (beyond the 95 % intervals)'
+
+
+def test_variant_changes_table_lists_each_other_status_and_counts_the_same(rows):
+    after = [row(0, 'UNEXPECTED', values=rows[0].values, first_failure='step 1:\n STUCK'),
+             row(1, 'OK', values=rows[1].values), rows[2], rows[3]]
+    lines = variant_changes_table(*variant_changes(rows, after)).splitlines()
+    assert lines == [
+        'tour_0000: A OK; B UNEXPECTED (step 1: STUCK)',
+        'tour_0001: A UNEXPECTED (step 2 goal <kitchen> & "sink": aborted); B OK',
+        '2 of 4 variants run in both sweeps have the same status; 2 another']
 
 
 def test_plot_axis_rates_writes_one_png_subplot_per_axis(rows, tmp_path):

@@ -1,8 +1,8 @@
 """Tests of the sweep statistics: Wilson intervals, rates, axes, worst variants, compare."""
 
 from mecanum_bringup.sweep_stats import (
-    axis_rates, compare, criterion_order, criterion_rates, Rate, value_label, wilson_interval,
-    worst_variants)
+    axis_rates, compare, criterion_order, criterion_rates, Rate, value_label, variant_changes,
+    wilson_interval, worst_variants)
 from mecanum_bringup.sweep_store import read_rows, ResultsStore, VariantRow
 import pytest
 
@@ -197,6 +197,21 @@ def test_compare_covers_criteria_of_either_sweep():
     step_1 = changes[1]
     assert (step_1.a.n, step_1.b.n, step_1.verdict) == (0, 50, 'same')   # (0, 1) overlaps
     assert changes[2].b.n == 0 and changes[2].verdict == 'same'
+
+
+def test_variant_changes_pair_the_same_variants_and_list_another_status(rows):
+    other = [row(0, 'UNEXPECTED', values=rows[0].values, first_failure='step 1: STUCK'),
+             row(1, 'UNEXPECTED', values=rows[1].values),         # same status
+             row(2, 'OK', values={'seed': 99}),                    # other values: not paired
+             row(3, 'ERROR', values=rows[3].values),               # same status
+             row(4, 'OK', values=rows[4].values),                  # same status
+             row(7, 'OK', values={'seed': 7})]                     # only in B
+    changes, both = variant_changes(rows, other)
+    assert both == 4
+    assert [(c.index, c.a.status, c.b.status) for c in changes] == [(0, 'OK', 'UNEXPECTED')]
+    assert changes[0].b.first_failure == 'step 1: STUCK'
+    assert variant_changes(rows, rows) == ([], 5)
+    assert variant_changes([], rows) == ([], 0)
 
 
 # --- with the results store -----------------------------------------------------------
