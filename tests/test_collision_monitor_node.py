@@ -183,17 +183,17 @@ def test_zones_sources_and_transforms(start_system, test_node):
 
         # A wall 0.205 m ahead, inside PolygonStop: zero out for every command but one
         # that backs straight away from it (Nav2's stop would hold that too), which is
-        # only slowed down by PolygonSlow (x 0.5).
+        # only limited by PolygonLimit (0.2 m/s).
         publishers.wall_m = 0.205
         for command in [(0.3, 0.0, 0.0), (0.0, 0.3, 0.0)]:
             assert expected_twist(command, 0.205).zone == 'PolygonStop'
             publishers.command = command
             settle(out, state, (0.0, 0.0, 0.0), 'STOP PolygonStop')
         backward = expected_twist((-0.3, 0.0, 0.0), 0.205)
-        assert backward.zone == 'PolygonSlow'
-        assert backward.twist == pytest.approx((-0.15, 0.0, 0.0))
+        assert backward.zone == 'PolygonLimit'
+        assert backward.twist == pytest.approx((-0.2, 0.0, 0.0))
         publishers.command = (-0.3, 0.0, 0.0)
-        settle(out, state, backward.twist, 'SLOWDOWN PolygonSlow')
+        settle(out, state, backward.twist, 'LIMIT PolygonLimit')
 
         # A wall 0.6 m ahead: the footprint approach limits motion towards it as the core
         # computes; backing off and strafing along it pass unchanged.

@@ -109,7 +109,7 @@ def test_a_non_finite_output_counts_as_holding():
 
 @pytest.mark.parametrize('states, reason', [
     # The stage now saying STOP wins over one now limiting otherwise.
-    ([('zone_guard', 'STOP at the border'), ('collision_monitor', 'SLOWDOWN PolygonSlow')],
+    ([('zone_guard', 'STOP at the border'), ('collision_monitor', 'LIMIT PolygonLimit')],
      'zone_guard STOP at the border'),
     # Only stages not passing count; the collision monitor passes zero on.
     ([('collision_monitor', 'STOP PolygonStop'), ('zone_guard', 'ALLOW')],
