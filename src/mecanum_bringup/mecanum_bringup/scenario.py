@@ -72,6 +72,7 @@ import tempfile
 from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
 from mecanum_control.robot_config import default_config_path, load_robot_config, RobotConfig
+from mecanum_control.yaml_files import load_yaml_file, SAFE_LOADER
 from mecanum_navigation.map_io import find_map_file, MapError
 from mecanum_navigation.safety.zone import parse_zone, Zone, ZoneError
 import numpy as np
@@ -118,7 +119,6 @@ SCENARIO_KEYS = ('name', 'description', 'world', 'map', 'spawn', 'initial_pose',
                  'authorised_zone', 'moving_obstacles', 'steps', 'criteria', 'expect')
 CRITERIA_KEYS = ('max_duration_s', 'no_collision', 'stay_in_zone', 'max_localization_error_m')
 _NAME = re.compile(r'[A-Za-z0-9_-]+')
-_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
 class ScenarioError(ValueError):
@@ -405,19 +405,7 @@ def find_scenarios(path_or_folder: PathLike) -> List[Path]:
 def load_scenario(path: PathLike) -> Scenario:
     """Read and check a scenario file; raise ScenarioError naming the file and the key."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding='utf-8')
-    except FileNotFoundError:
-        raise ScenarioError(f'{path}: no such scenario file') from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise ScenarioError(f'{path}: cannot read scenario file: {error}') from None
-    try:
-        doc = yaml.load(text, Loader=_YAML_LOADER)
-    except yaml.YAMLError as error:
-        mark = getattr(error, 'problem_mark', None)
-        problem = getattr(error, 'problem', None) or str(error)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        raise ScenarioError(f'{path.name}: YAML syntax error{where}: {problem}') from None
+    doc = load_yaml_file(path, 'scenario file', ScenarioError)
     return _Parser(path).parse(doc)
 
 
@@ -488,7 +476,7 @@ def _cached_world(key: Tuple[str, int, int]) -> World:
 
 @functools.lru_cache(maxsize=16)
 def _cached_document(key: Tuple[str, int, int]) -> Dict[str, Any]:
-    return yaml.load(Path(key[0]).read_text(encoding='utf-8'), Loader=_YAML_LOADER)
+    return yaml.load(Path(key[0]).read_text(encoding='utf-8'), Loader=SAFE_LOADER)
 
 
 def _base_world(world_file: Path) -> World:

@@ -51,6 +51,7 @@ import random
 import re
 from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
+from mecanum_control.yaml_files import load_yaml_file_with_nodes
 import yaml
 
 PathLike = Union[str, Path]
@@ -64,7 +65,6 @@ PERSON_KEYS = ('name', 'speed_m_s', 'path', 'loop', 'radius_m')
 #: Most variants a sweep may have (a typo in a grid should not start a month of runs).
 MAX_VARIANTS = 10000
 _NAME = re.compile(r'[A-Za-z0-9_-]+')
-_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
 class SweepError(ValueError):
@@ -129,24 +129,8 @@ def _short(value: Any) -> str:
 def load_sweep(path: PathLike) -> Sweep:
     """Read and check a sweep file; raise SweepError naming the file, line and key."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding='utf-8')
-    except FileNotFoundError:
-        raise SweepError(f'{path}: no such sweep file') from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise SweepError(f'{path}: cannot read sweep file: {error}') from None
-    loader = _YAML_LOADER(text)
-    try:
-        # One parse: the node tree gives the keys' lines, the document is built from it.
-        node = loader.get_single_node()
-        doc = loader.construct_document(node) if node is not None else None
-    except yaml.YAMLError as error:
-        mark = getattr(error, 'problem_mark', None)
-        problem = getattr(error, 'problem', None) or str(error)
-        line = f':{mark.line + 1}' if mark else ''
-        raise SweepError(f'{path.name}{line}: YAML syntax error: {problem}') from None
-    finally:
-        loader.dispose()
+    # One parse: the node tree gives the keys' lines, the document is built from it.
+    doc, node = load_yaml_file_with_nodes(path, 'sweep file', SweepError)
     lines: Dict[str, int] = {}
     if node is not None:
         _key_lines(node, '', lines)

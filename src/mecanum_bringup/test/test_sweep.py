@@ -171,7 +171,7 @@ BAD = [
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes: {}\n',
      'sweep.yaml:4: sweep.axes: needs at least one axis'),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n    seed: [1, 2\n',
-     'sweep.yaml:6: YAML syntax error'),
+     'sweep.yaml: YAML syntax error at line 6'),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: random\n  samples: 20000\n'
      '  master_seed: 1\n  axes: {seed: [1]}\n',
      'sweep.yaml:5: sweep.samples: 20000 variants, more than the 10000 allowed'),

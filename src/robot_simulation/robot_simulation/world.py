@@ -46,11 +46,11 @@ from pathlib import Path
 import re
 from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
+from mecanum_control.yaml_files import load_yaml_file
 from mecanum_navigation.map_io import (
     find_map_file, load_map, MapError, OccupancyMap, world_to_cell)
 from mecanum_navigation.safety.zone import parse_zone, points_in_polygon, Zone, ZoneError
 import numpy as np
-import yaml
 
 PathLike = Union[str, Path]
 Point = Tuple[float, float]
@@ -312,19 +312,7 @@ def load_world(path: PathLike) -> World:
     """
     path = Path(path)
     label = path.name
-    try:
-        text = path.read_text(encoding='utf-8')
-    except FileNotFoundError:
-        raise WorldError(f'{path}: no such world file') from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise WorldError(f'{path}: cannot read world file: {error}') from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, 'problem_mark', None)
-        problem = getattr(error, 'problem', None) or str(error)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        raise WorldError(f'{label}: YAML syntax error{where}: {problem}') from None
+    doc = load_yaml_file(path, 'world file', WorldError)
     if doc is None:
         raise WorldError(f'{label}: the file is empty (expected a top-level "world:" mapping)')
     return _Parser(path).parse(doc)
