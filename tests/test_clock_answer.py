@@ -316,3 +316,64 @@ def test_clocks_taken_in_one_round_run_a_timer_once_and_skip_no_period(ros_env, 
         node.destroy_node()
         listener.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_clocks_from_before_and_after_lockstep_begins_are_taken_as_one(ros_env, monkeypatch):
+    """
+    The simulator's /clock_ack subscription matches between two /clock of one round.
+
+    The first /clock came outside lockstep (taken after the round), the second in it
+    (held): taking both jumped the clock twice, the timer ran twice and skipped the next
+    period; in lockstep the board then got no command and time stood still 10 s (1 sweep
+    run in 74, at its start).
+    """
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=int(ros_env['ROS_DOMAIN_ID']))
+    node = Node('timed', context=context,
+                parameter_overrides=[Parameter('use_sim_time', value=True)])
+    calls = []
+    node.create_timer(PERIOD_NS * 1e-9, lambda: calls.append(node.get_clock().now().nanoseconds))
+    executor = make_executor(context)
+    executor.add_node(node)
+    answer = answer_clock([node], 'timed')
+    clock_callback = next(sub.callback for sub in node.subscriptions
+                          if sub.topic_name == '/clock')
+    listener = Node('simulator', context=context)
+
+    def clock(clock_ns):
+        sec, nanosec = divmod(clock_ns, 10 ** 9)
+        clock_callback(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+
+    def run_round():
+        before = len(calls)
+        for _ in range(20):
+            answer.after_spin(executor)
+            executor.spin_once(timeout_sec=0.0)
+        return len(calls) - before
+    try:
+        clock_ns = 10 ** 9
+        for _ in range(3):
+            clock_ns += PERIOD_NS
+            clock(clock_ns)
+            assert run_round() == 1
+        clock_ns += PERIOD_NS
+        clock(clock_ns)                   # outside lockstep: waits for the round's end
+        listener.create_subscription(Header, '/clock_ack', lambda msg: None, RELIABLE)
+        deadline = time.monotonic() + 10.0
+        while answer.publisher.get_subscription_count() == 0:
+            assert time.monotonic() < deadline, 'the /clock_ack subscription was not matched'
+            time.sleep(0.01)
+        clock_ns += PERIOD_NS
+        clock(clock_ns)                   # in lockstep: held
+        counts = [run_round()]
+        for _ in range(5):
+            clock_ns += PERIOD_NS
+            clock(clock_ns)
+            counts.append(run_round())
+        assert counts == [1] * 6, f'timer calls per round from the transition on: {counts}'
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        listener.destroy_node()
+        rclpy.try_shutdown(context=context)

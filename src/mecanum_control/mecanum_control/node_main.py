@@ -310,7 +310,7 @@ class ClockAnswer:
 
     def after_spin(self, executor) -> None:
         """Take a held /clock (1, 2 above) or answer the pending one once its work is done."""
-        if self._free:
+        if self._free and not self._deferred:
             free, self._free = self._free, {}
             self._take_newest(list(free.items()))
         if self._deferred:
@@ -318,8 +318,12 @@ class ClockAnswer:
                 if catch_up():
                     self._idle_at = -1     # it published: drain
             self.drain(executor)
+            # Outside lockstep a moment ago (the simulator's subscription just matched):
+            # those /clock are older, taken with these as one.
+            free, self._free = self._free, {}
             deferred, self._deferred = self._deferred, []
-            self._take_newest([(callback, take) for callback, take, _ in deferred])
+            self._take_newest(list(free.items())
+                              + [(callback, take) for callback, take, _ in deferred])
             held, self._held = self._held, []
             for run in held:      # outside messages that came after the /clock, at its time
                 run()
