@@ -266,8 +266,69 @@ def test_clocks_that_arrive_while_busy_run_a_timer_once_and_skip_no_period(
             f'timer calls at /clock {together} ns (3 taken together) and the 3 after: {calls}')
 
 
+class TimedProcess:
+    """
+    One node with a 50 Hz timer on simulated time, spun by hand as spin_waking does.
+
+    The test hands /clock messages straight to the node's /clock callback (as the
+    executor would), so several come in one round of the executor at will; a second node
+    subscribes to /clock_ack when asked, which puts ClockAnswer in lockstep.
+    """
+
+    def __init__(self, domain_id: int):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = Node('timed', context=self.context,
+                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+        self.calls = []
+        self.node.create_timer(PERIOD_NS * 1e-9, lambda: self.calls.append(
+            self.node.get_clock().now().nanoseconds))
+        self.listener = Node('simulator', context=self.context)
+        self.executor = make_executor(self.context)
+        self.executor.add_node(self.node)
+        self.answer = answer_clock([self.node], 'timed')
+        self._clock_callback = next(sub.callback for sub in self.node.subscriptions
+                                    if sub.topic_name == '/clock')
+
+    def clock(self, clock_ns: int) -> None:
+        sec, nanosec = divmod(clock_ns, 10 ** 9)
+        self._clock_callback(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+
+    def start_lockstep(self) -> None:
+        """Subscribe to /clock_ack; return once ClockAnswer sees the subscription."""
+        self.listener.create_subscription(Header, '/clock_ack', lambda msg: None, RELIABLE)
+        deadline = time.monotonic() + 10.0
+        while self.answer.publisher.get_subscription_count() == 0:
+            assert time.monotonic() < deadline, 'the /clock_ack subscription was not matched'
+            time.sleep(0.01)
+
+    def run_round(self) -> int:
+        """Run the executor and ClockAnswer as spin_waking does; return the timer's calls."""
+        before = len(self.calls)
+        for _ in range(20):
+            self.answer.after_spin(self.executor)
+            self.executor.spin_once(timeout_sec=0.0)
+        return len(self.calls) - before
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.listener.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def timed_process(ros_env, monkeypatch):
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    process = TimedProcess(int(ros_env['ROS_DOMAIN_ID']))
+    try:
+        yield process
+    finally:
+        process.close()
+
+
 @pytest.mark.parametrize('lockstep', [True, False], ids=['lockstep', 'free_running'])
-def test_clocks_taken_in_one_round_run_a_timer_once_and_skip_no_period(ros_env, monkeypatch,
+def test_clocks_taken_in_one_round_run_a_timer_once_and_skip_no_period(timed_process,
                                                                        lockstep):
     """
     Three /clock messages come in one round of the executor (a busy process), 20 times.
@@ -279,46 +340,18 @@ def test_clocks_taken_in_one_round_run_a_timer_once_and_skip_no_period(ros_env, 
     and simulated time stood still for 10 s: 1 sweep run in 16). ClockAnswer takes the
     newest only, in lockstep and outside it.
     """
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=int(ros_env['ROS_DOMAIN_ID']))
-    node = Node('timed', context=context,
-                parameter_overrides=[Parameter('use_sim_time', value=True)])
-    calls = []
-    node.create_timer(PERIOD_NS * 1e-9, lambda: calls.append(node.get_clock().now().nanoseconds))
-    listener = Node('simulator', context=context)
     if lockstep:
-        listener.create_subscription(Header, '/clock_ack', lambda msg: None, RELIABLE)
-    executor = make_executor(context)
-    executor.add_node(node)
-    answer = answer_clock([node], 'timed')
-    clock_callback = next(sub.callback for sub in node.subscriptions
-                          if sub.topic_name == '/clock')
-    try:
-        deadline = time.monotonic() + 10.0
-        while (answer.publisher.get_subscription_count() > 0) != lockstep:
-            assert time.monotonic() < deadline, 'the /clock_ack subscription was not matched'
-            time.sleep(0.01)
-        clock_ns, counts = 10 ** 9, []
-        for round_ in range(60):
-            for _ in range(3 if round_ % 3 == 0 else 1):
-                clock_ns += PERIOD_NS
-                sec, nanosec = divmod(clock_ns, 10 ** 9)
-                clock_callback(Clock(clock=Time(sec=sec, nanosec=nanosec)))
-            before = len(calls)
-            for _ in range(20):
-                answer.after_spin(executor)
-                executor.spin_once(timeout_sec=0.0)
-            counts.append(len(calls) - before)
-        assert counts[1:] == [1] * 59, f'timer calls per round (3 clocks every third): {counts}'
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        listener.destroy_node()
-        rclpy.try_shutdown(context=context)
+        timed_process.start_lockstep()
+    clock_ns, counts = 10 ** 9, []
+    for round_ in range(60):
+        for _ in range(3 if round_ % 3 == 0 else 1):
+            clock_ns += PERIOD_NS
+            timed_process.clock(clock_ns)
+        counts.append(timed_process.run_round())
+    assert counts[1:] == [1] * 59, f'timer calls per round (3 clocks every third): {counts}'
 
 
-def test_clocks_from_before_and_after_lockstep_begins_are_taken_as_one(ros_env, monkeypatch):
+def test_clocks_from_before_and_after_lockstep_begins_are_taken_as_one(timed_process):
     """
     The simulator's /clock_ack subscription matches between two /clock of one round.
 
@@ -327,53 +360,19 @@ def test_clocks_from_before_and_after_lockstep_begins_are_taken_as_one(ros_env, 
     period; in lockstep the board then got no command and time stood still 10 s (1 sweep
     run in 74, at its start).
     """
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=int(ros_env['ROS_DOMAIN_ID']))
-    node = Node('timed', context=context,
-                parameter_overrides=[Parameter('use_sim_time', value=True)])
-    calls = []
-    node.create_timer(PERIOD_NS * 1e-9, lambda: calls.append(node.get_clock().now().nanoseconds))
-    executor = make_executor(context)
-    executor.add_node(node)
-    answer = answer_clock([node], 'timed')
-    clock_callback = next(sub.callback for sub in node.subscriptions
-                          if sub.topic_name == '/clock')
-    listener = Node('simulator', context=context)
-
-    def clock(clock_ns):
-        sec, nanosec = divmod(clock_ns, 10 ** 9)
-        clock_callback(Clock(clock=Time(sec=sec, nanosec=nanosec)))
-
-    def run_round():
-        before = len(calls)
-        for _ in range(20):
-            answer.after_spin(executor)
-            executor.spin_once(timeout_sec=0.0)
-        return len(calls) - before
-    try:
-        clock_ns = 10 ** 9
-        for _ in range(3):
-            clock_ns += PERIOD_NS
-            clock(clock_ns)
-            assert run_round() == 1
+    clock_ns = 10 ** 9
+    for _ in range(3):
         clock_ns += PERIOD_NS
-        clock(clock_ns)                   # outside lockstep: waits for the round's end
-        listener.create_subscription(Header, '/clock_ack', lambda msg: None, RELIABLE)
-        deadline = time.monotonic() + 10.0
-        while answer.publisher.get_subscription_count() == 0:
-            assert time.monotonic() < deadline, 'the /clock_ack subscription was not matched'
-            time.sleep(0.01)
+        timed_process.clock(clock_ns)
+        assert timed_process.run_round() == 1
+    clock_ns += PERIOD_NS
+    timed_process.clock(clock_ns)         # outside lockstep: waits for the round's end
+    timed_process.start_lockstep()
+    clock_ns += PERIOD_NS
+    timed_process.clock(clock_ns)         # in lockstep: held
+    counts = [timed_process.run_round()]
+    for _ in range(5):
         clock_ns += PERIOD_NS
-        clock(clock_ns)                   # in lockstep: held
-        counts = [run_round()]
-        for _ in range(5):
-            clock_ns += PERIOD_NS
-            clock(clock_ns)
-            counts.append(run_round())
-        assert counts == [1] * 6, f'timer calls per round from the transition on: {counts}'
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        listener.destroy_node()
-        rclpy.try_shutdown(context=context)
+        timed_process.clock(clock_ns)
+        counts.append(timed_process.run_round())
+    assert counts == [1] * 6, f'timer calls per round from the transition on: {counts}'
