@@ -128,7 +128,7 @@ class ZoneGuardNode(Node):
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
         self._state_logs = KeyedThrottle(STATE_LOG_PERIOD_S)
         self.sigma_xy_m = 0.0          # no covariance heard yet: margin_m alone
-        self.covariance_xy = None      # (xx, xy, yy) m^2 of the last covariance heard
+        self.covariance = None         # the last pose covariance heard (36 values)
         self.sigma_used_m = 0.0        # sigma toward the border of the last command
         self.covariance_count = 0
         self.commands = 0
@@ -220,7 +220,7 @@ class ZoneGuardNode(Node):
             self._warn('covariance', f'unusable pose covariance (sigma_xy {sigma}): using '
                        f'max_margin_m {self.guard.max_margin_m:g} m')
         self.sigma_xy_m = sigma
-        self.covariance_xy = guard.xy_block(msg.pose.covariance)
+        self.covariance = tuple(msg.pose.covariance)
         self.covariance_count += 1
 
     def on_command(self, msg: Twist) -> None:
@@ -248,9 +248,8 @@ class ZoneGuardNode(Node):
             self._set_state(f'STOP {reason}', f'STOP {reason}', DiagnosticStatus.ERROR)
             return
         twist = (msg.linear.x, msg.linear.y, msg.angular.z)
-        if self.covariance_xy is not None:
-            xx, xy, yy = self.covariance_xy
-            self.sigma_used_m = self.guard.sigma(pose, twist, (xx, xy, xy, yy))
+        if self.covariance is not None:
+            self.sigma_used_m = self.guard.sigma(pose, twist, self.covariance)
         else:
             self.sigma_used_m = self.sigma_xy_m
         result = self.guard.step(pose, twist, self.sigma_used_m)
