@@ -4,7 +4,7 @@ Benchmark: compute time of one LocalController.compute_velocity cycle (pure core
 
 A closed-loop drive through the simulator's apartment world: the static map
 (robot_simulation's World.to_occupancy_map at 0.05 m) feeds a 3 m x 3 m rolling local
-costmap centred on the robot (mecanum_navigation.costmap: StaticLayer, then
+costmap centred on the robot (mecanum_navigation.costmap.costmap_2d: StaticLayer, then
 InflationLayer with Nav2's defaults, inflation_radius 0.55 m, cost_scaling_factor 3.0,
 inscribed radius = footprint_radius_m of motor_params.yaml). When costmap.py lacks
 those, or with --numpy-costmap, a plain numpy stand-in does the same (static cells,
@@ -121,11 +121,11 @@ class NumpyLocalCostmap:
 
 
 class LayeredLocalCostmap:
-    """The local costmap built with mecanum_navigation.costmap's layers."""
+    """The local costmap built with mecanum_navigation.costmap.costmap_2d's layers."""
 
     def __init__(self, occupancy, inscribed_m: float):
         """Make the rolling window and its static and inflation layers."""
-        from mecanum_navigation.costmap import (
+        from mecanum_navigation.costmap.costmap_2d import (
             InflationLayer, LayeredCostmap, RollingWindow, StaticLayer)
 
         self.window = RollingWindow(LOCAL_SIZE_M, LOCAL_SIZE_M, RESOLUTION_M)
@@ -141,7 +141,7 @@ class LayeredLocalCostmap:
 def drive(params, local, path, max_cycles: int) -> dict:
     """Drive the route in closed loop; return the timings (s) and the outcome."""
     from mecanum_control.kinematics import integrate_pose
-    from mecanum_navigation.local_controller import LocalController
+    from mecanum_navigation.controller.local_controller import LocalController
 
     controller = LocalController(params)
     start = ROUTE[0]
@@ -181,14 +181,14 @@ def main() -> int:
     parser.add_argument('--max-cycles', type=int, default=800,
                         help='cycles per drive at most (20 Hz: 800 = 40 s; default 800)')
     parser.add_argument('--numpy-costmap', action='store_true',
-                        help='use the numpy stand-in instead of mecanum_navigation.costmap')
+                        help='use the numpy stand-in instead of mecanum_navigation.costmap.costmap_2d')
     parser.add_argument('--json', type=Path)
     args = parser.parse_args()
     if args.max_cycles < 2:
         parser.error('--max-cycles must be >= 2')
 
     from mecanum_control.robot_config import default_config_path, load_robot_config
-    from mecanum_navigation.local_controller import ControllerParams
+    from mecanum_navigation.controller.local_controller import ControllerParams
     from robot_simulation.world import find_world, load_world
 
     robot = load_robot_config(default_config_path())
@@ -200,7 +200,7 @@ def main() -> int:
         try:
             local = LayeredLocalCostmap(occupancy, robot.footprint_radius_m)
             local.around(*ROUTE[0])   # JIT warm-up of the layers, not timed
-            backend = 'mecanum_navigation.costmap (StaticLayer + InflationLayer)'
+            backend = 'mecanum_navigation.costmap.costmap_2d (StaticLayer + InflationLayer)'
         except (ImportError, AttributeError, TypeError) as error:
             print(f'costmap.py not usable ({error}); using the numpy stand-in',
                   file=sys.stderr)

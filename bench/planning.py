@@ -2,7 +2,7 @@
 """
 Benchmark: costmap inflation and global planning times (pure cores, no ROS).
 
-Builds two costmaps with mecanum_navigation.costmap (static layer + inflation with
+Builds two costmaps with mecanum_navigation.costmap.costmap_2d (static layer + inflation with
 Nav2's defaults: inflation_radius 0.55 m, cost_scaling_factor 3.0, inscribed_radius =
 the robot's footprint_radius_m from motor_params.yaml):
 
@@ -13,7 +13,7 @@ the robot's footprint_radius_m from motor_params.yaml):
     (rectangles and round tables) inside the rooms, away from the doorways.
 
 It times inflation (median of --inflation-runs), then plans a fixed set of start/goal
-pairs on each map with mecanum_navigation.planner.GridPlanner (default parameters:
+pairs on each map with mecanum_navigation.planner.planner.GridPlanner (default parameters:
 cost_weight 1, smoothing on), including one whose path is about 75 m long, the length
 of the published Nav2 Smac 2D figure (243 ms for a 75 m path), shown as the reference
 line. Each pair is planned once untimed, then --runs times; the table shows the
@@ -68,7 +68,7 @@ SYNTHETIC_PAIRS = [
 def synthetic_map(seed: int):
     """Return the seeded 100 m x 100 m OccupancyMap (see the module docstring)."""
     import numpy as np
-    from mecanum_navigation.map_io import OccupancyMap
+    from mecanum_map_server.map_io import OccupancyMap
 
     rng = np.random.default_rng(seed)
     cells = int(round(SYNTHETIC_SIZE_M / RESOLUTION_M))
@@ -131,7 +131,7 @@ def nearest_free(costmap, x: float, y: float) -> Tuple[float, float]:
 
 def build_costmap(occupancy, inscribed_radius: float, runs: int):
     """Return the inflated costmap and the static layer and inflation times (s, median)."""
-    from mecanum_navigation.costmap import Costmap2D, InflationLayer, StaticLayer
+    from mecanum_navigation.costmap.costmap_2d import Costmap2D, InflationLayer, StaticLayer
 
     costmap = Costmap2D.like_map(occupancy)
     static = StaticLayer(occupancy)
@@ -150,7 +150,7 @@ def build_costmap(occupancy, inscribed_radius: float, runs: int):
 
 def time_pairs(planner, costmap, pairs, runs: int) -> List[dict]:
     """Plan every pair once untimed, then `runs` times; return one row per pair."""
-    from mecanum_navigation.planner import GridPlanner, PlanningError
+    from mecanum_navigation.planner.planner import GridPlanner, PlanningError
 
     shortest_planner = GridPlanner(cost_weight=0.0)
 
@@ -183,9 +183,10 @@ def time_pairs(planner, costmap, pairs, runs: int) -> List[dict]:
 def warm_up() -> dict:
     """Time the first calls of the numba kernels on a tiny costmap (compile or cache load)."""
     begin = time.perf_counter()
-    from mecanum_navigation import grid_search
-    from mecanum_navigation.costmap import Costmap2D, InflationLayer, ObstacleLayer
-    from mecanum_navigation.planner import GridPlanner
+    from mecanum_navigation.costmap import kernels
+    from mecanum_navigation.planner import grid_search
+    from mecanum_navigation.costmap.costmap_2d import Costmap2D, InflationLayer, ObstacleLayer
+    from mecanum_navigation.planner.planner import GridPlanner
     imported = time.perf_counter()
     costmap = Costmap2D(40, 40, RESOLUTION_M)
     costmap.costs[5:35, 20] = 254
@@ -196,8 +197,8 @@ def warm_up() -> dict:
     GridPlanner().plan(costmap, (0.3, 1.0), (1.7, 1.0))
     done = time.perf_counter()
     hits = sum(sum(kernel.stats.cache_hits.values()) for kernel in (
-        grid_search.inflate, grid_search.astar, grid_search.shortcut, grid_search.smooth,
-        grid_search.raytrace))
+        kernels.inflate, grid_search.astar, grid_search.shortcut, grid_search.smooth,
+        kernels.raytrace))
     return {'import_s': imported - begin, 'first_calls_s': done - imported,
             'cache': 'loaded from cache' if hits else 'compiled',
             'numba_cache_dir': os.environ.get('NUMBA_CACHE_DIR', '(default: __pycache__)')}
@@ -242,7 +243,7 @@ def main() -> int:
         jit = warm_up()
 
         from mecanum_control.robot_config import default_config_path, load_robot_config
-        from mecanum_navigation.planner import GridPlanner
+        from mecanum_navigation.planner.planner import GridPlanner
         from robot_simulation.world import find_world, load_world
 
         robot = load_robot_config(default_config_path())

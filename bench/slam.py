@@ -6,7 +6,7 @@ Records a run first (pure simulator parts, no ROS): the robot drives a loop thro
 every room of the apartment twice at 0.4 m/s, with the simulator's 360-beam lidar
 (1 cm noise, the walking person) at 10 Hz and wheel odometry that drifts (3 % scale
 error, 0.02 rad/m yaw drift, noise), and saves it to an .npz file (scans, odometry,
-ground truth, stamps). Then it maps the recording with mecanum_navigation.slam.OnlineSlam
+ground truth, stamps). Then it maps the recording with mecanum_navigation.slam.slam.OnlineSlam
 (config/slam_params.yaml's values) as fast as it can, with and without loop closing, and
 prints: CPU time per scan (keyframes and the others: median, p95, max; the goal is well
 under 100 ms, the scan period), the real-time factor (recorded seconds / CPU seconds
@@ -24,8 +24,8 @@ import sys
 import tempfile
 import time
 
-from mecanum_navigation.pose_graph import compose, relative, wrap_angle
-from mecanum_navigation.slam import occupied_overlap, OnlineSlam, SlamConfig
+from mecanum_navigation.slam.pose_graph import compose, relative, wrap_angle
+from mecanum_navigation.slam.slam import occupied_overlap, OnlineSlam, SlamConfig
 import numpy as np
 from robot_simulation.sensors import Lidar, LidarConfig
 from robot_simulation.world import find_world, load_world

@@ -46,7 +46,7 @@ START = PlanarTransform(*WORLD.robot_start)
 def write_launch(directory: Path) -> Path:
     """Write the test system: map_server, simulation_node, amcl (config/amcl.yaml)."""
     launch = {'launch': [
-        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_server', 'name': 'map_server',
+        {'node': {'pkg': 'mecanum_map_server', 'exec': 'map_server', 'name': 'map_server',
                   'param': [{'name': 'yaml_filename', 'value': 'apartment'},
                             {'name': 'use_sim_time', 'value': True}]}},
         {'node': {'pkg': 'robot_simulation', 'exec': 'simulation_node',

@@ -19,7 +19,7 @@ import time
 
 from geometry_msgs.msg import PolygonStamped, TransformStamped, Twist
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_navigation.safety.collision_monitor import (
+from mecanum_safety.collision_monitor import (
     CollisionMonitor, scan_to_points, SourceData, Zone)
 import numpy as np
 import pytest
@@ -34,7 +34,7 @@ pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
 PARAMS = yaml.safe_load(
-    (REPO / 'src/mecanum_navigation/config/collision_monitor.yaml').read_text()
+    (REPO / 'src/mecanum_safety/config/collision_monitor.yaml').read_text()
 )['collision_monitor']['ros__parameters']
 MOUNT = (load_robot_config(default_config_path()).lidar_mount_x_m, 0.0, math.pi)
 BEAMS = 360
@@ -155,7 +155,7 @@ def test_zones_sources_and_transforms(start_system, test_node):
         polygons[name] = []
         test_node.node.create_subscription(PolygonStamped, f'/collision_monitor/{name}',
                                            polygons[name].append, latched)
-    system = start_system('mecanum_navigation', 'collision_monitor.launch.yaml',
+    system = start_system('mecanum_safety', 'collision_monitor.launch.yaml',
                           'use_sim_time:=true')
     system.wait_for_line(r'\[collision_monitor\].*Collision monitor started')
     publishers = Publishers(test_node)
@@ -254,7 +254,7 @@ def test_zones_sources_and_transforms(start_system, test_node):
 ])
 def test_bad_parameters_stop_the_node_with_a_clear_message(ros_env, arguments, message):
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'collision_monitor', '--ros-args',
+        ['./mecanum', 'run', 'mecanum_safety', 'collision_monitor', '--ros-args',
          *arguments], env=ros_env, capture_output=True, text=True, timeout=60,
         cwd=str(REPO))
     output = result.stdout + result.stderr

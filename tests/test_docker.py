@@ -280,7 +280,7 @@ def test_dockerignore_keeps_host_builds_and_outputs_out(path):
 
 @pytest.mark.parametrize('path', [
     'Makefile', 'mecanum', 'pytest.ini', 'requirements.txt', 'ros_pip_overlay/COLCON_IGNORE',
-    'ros_pip_overlay/tf2_msgs/package.xml', 'src/mecanum_navigation/maps/apartment.yaml',
+    'ros_pip_overlay/tf2_msgs/package.xml', 'src/mecanum_map_server/maps/apartment.yaml',
 ])
 def test_dockerignore_keeps_what_the_setup_and_tests_need(path):
     """The files `make setup`, the demo and the tests need go into the image."""

@@ -13,7 +13,7 @@ import re
 import subprocess
 import time
 
-from mecanum_navigation.map_io import find_map_file, load_map, OccupancyMap, save_map
+from mecanum_map_server.map_io import find_map_file, load_map, OccupancyMap, save_map
 from nav2_msgs.srv import LoadMap, SaveMap
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
@@ -30,14 +30,14 @@ REPO = Path(__file__).resolve().parents[1]
 def test_map_round_trip_through_server_and_saver(start_system, test_node, ros_env, tmp_path,
                                                  map_name):
     original = load_map(find_map_file(map_name))
-    system = start_system('mecanum_navigation', 'map_server.launch.yaml', f'map:={map_name}')
+    system = start_system('mecanum_map_server', 'map_server.launch.yaml', f'map:={map_name}')
     system.wait_for_line(r'\[map_server\].*Serving map')
     maps = []
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     test_node.node.create_subscription(OccupancyGrid, 'map', maps.append, latched)
     saved = tmp_path / 'saved'
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'map_saver_cli', '-f', str(saved)],
+        ['./mecanum', 'run', 'mecanum_map_server', 'map_saver_cli', '-f', str(saved)],
         env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
     assert result.returncode == 0, result.stdout + result.stderr
     deadline = time.monotonic() + 10.0
@@ -64,12 +64,12 @@ def test_scale_and_raw_maps_round_trip_through_server_and_saver(start_system, ro
     data = np.resize(values, (40, 61)).astype(np.int8)
     original = OccupancyMap(0.05, (-1.0, 0.5, 0.0), data)
     save_map(original, tmp_path / 'source.yaml', mode=mode)
-    system = start_system('mecanum_navigation', 'map_server.launch.yaml',
+    system = start_system('mecanum_map_server', 'map_server.launch.yaml',
                           f'map:={tmp_path / "source.yaml"}')
     system.wait_for_line(r'\[map_server\].*Serving map')
     saved = tmp_path / 'saved'
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'map_saver_cli', '-f', str(saved),
+        ['./mecanum', 'run', 'mecanum_map_server', 'map_saver_cli', '-f', str(saved),
          '--mode', mode],
         env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
     assert result.returncode == 0, result.stdout + result.stderr
@@ -80,7 +80,7 @@ def test_scale_and_raw_maps_round_trip_through_server_and_saver(start_system, ro
 
 def test_a_missing_map_stops_the_server_with_a_clear_message(ros_env):
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'map_server', '--ros-args', '-p',
+        ['./mecanum', 'run', 'mecanum_map_server', 'map_server', '--ros-args', '-p',
          'yaml_filename:=/nonexistent/house.yaml'],
         env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
     output = result.stdout + result.stderr
@@ -92,7 +92,7 @@ def test_a_missing_map_stops_the_server_with_a_clear_message(ros_env):
 
 def test_saver_without_a_map_gives_up_with_an_error(ros_env, tmp_path):
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'map_saver_cli', '-f',
+        ['./mecanum', 'run', 'mecanum_map_server', 'map_saver_cli', '-f',
          str(tmp_path / 'none'), '--timeout', '1'],
         env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
     assert result.returncode == 1
@@ -108,7 +108,7 @@ def test_load_map_swaps_the_map_or_says_why_not(start_system, test_node, tmp_pat
     YAML and a missing image: their result codes, and the old map stays.
     """
     lab = load_map(find_map_file('lab_map'))
-    system = start_system('mecanum_navigation', 'map_server.launch.yaml', 'map:=apartment')
+    system = start_system('mecanum_map_server', 'map_server.launch.yaml', 'map:=apartment')
     system.wait_for_line(r'\[map_server\].*Serving map')
     maps = []
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -150,9 +150,9 @@ def test_save_map_service_writes_the_served_map(start_system, test_node, tmp_pat
     lab = load_map(find_map_file('lab_map'))
     launch = tmp_path / 'saver.launch.yaml'
     launch.write_text(yaml.safe_dump({'launch': [
-        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_server', 'name': 'map_server',
+        {'node': {'pkg': 'mecanum_map_server', 'exec': 'map_server', 'name': 'map_server',
                   'param': [{'name': 'yaml_filename', 'value': 'lab_map'}]}},
-        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_saver_server',
+        {'node': {'pkg': 'mecanum_map_server', 'exec': 'map_saver_server',
                   'name': 'map_saver', 'param': [{'name': 'save_map_timeout', 'value': 1.0}]}},
     ]}))
     system = start_system(str(launch))

@@ -24,9 +24,9 @@ from mecanum_bringup.system_description import load_system
 from mecanum_control.kinematics import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_localization.transforms import PlanarTransform, wrap_angle
-from mecanum_navigation import navigator as R   # the navigator's result codes
-from mecanum_navigation.map_io import OccupancyMap, save_map
-from mecanum_navigation.safety.zone import make_zone, zone_file_text
+from mecanum_map_server.map_io import OccupancyMap, save_map
+from mecanum_navigation.navigator import navigator as R
+from mecanum_safety.zone import make_zone, zone_file_text
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav_msgs.msg import OccupancyGrid, Odometry, Path as PathMsg
 import numpy as np
@@ -81,7 +81,7 @@ def write_launch(directory: Path, map_yaml: Path) -> Path:
     overrides.write_text(yaml.safe_dump({'navigator': {'ros__parameters': {
         'odom_topic': 'odom', 'zone_file': str(zone_file)}}}))
     launch = {'launch': [
-        {'node': {'pkg': 'mecanum_navigation', 'exec': 'map_server', 'name': 'map_server',
+        {'node': {'pkg': 'mecanum_map_server', 'exec': 'map_server', 'name': 'map_server',
                   'param': [{'name': 'yaml_filename', 'value': str(map_yaml)},
                             {'name': 'use_sim_time', 'value': True}]}},
         {'node': {'pkg': 'robot_simulation', 'exec': 'simulation_node',

@@ -17,7 +17,7 @@ import threading
 import time
 
 from geometry_msgs.msg import TransformStamped, Twist
-from mecanum_navigation.safety.zone import make_zone, zone_file_text
+from mecanum_safety.zone import make_zone, zone_file_text
 import pytest
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage

@@ -20,9 +20,9 @@ import subprocess
 import threading
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
-from mecanum_navigation.grid_messages import occupancy_map
-from mecanum_navigation.map_io import load_map, OccupancyMap
-from mecanum_navigation.slam import occupied_overlap
+from mecanum_map_server.grid_messages import occupancy_map
+from mecanum_map_server.map_io import load_map, OccupancyMap
+from mecanum_navigation.slam.slam import occupied_overlap
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 import pytest
@@ -193,7 +193,7 @@ def test_slam_maps_the_apartment(start_system, test_node, ros_env, tmp_path):
     # Saved the Nav2 way, the map loads back as published.
     saved = tmp_path / 'apartment_slam'
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'map_saver_cli', '-f', str(saved)],
+        ['./mecanum', 'run', 'mecanum_map_server', 'map_saver_cli', '-f', str(saved)],
         env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
     assert result.returncode == 0, result.stdout + result.stderr
     again = load_map(saved.with_suffix('.yaml'))

@@ -26,7 +26,7 @@ pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
 PARAMS = yaml.safe_load(
-    (REPO / 'src/mecanum_navigation/config/twist_mux.yaml').read_text()
+    (REPO / 'src/mecanum_safety/config/twist_mux.yaml').read_text()
 )['twist_mux']['ros__parameters']
 TOPICS = PARAMS['topics']
 NAV_TOPIC = TOPICS['navigation']['topic']
@@ -42,9 +42,9 @@ ZERO = (0.0, 0.0, 0.0)
 def write_launch(directory: Path) -> Path:
     """Write the test system: the twist_mux node as the command chain starts it."""
     launch = {'launch': [
-        {'node': {'pkg': 'mecanum_navigation', 'exec': 'twist_mux', 'name': 'twist_mux',
+        {'node': {'pkg': 'mecanum_safety', 'exec': 'twist_mux', 'name': 'twist_mux',
                   'param': [
-                      {'from': '$(find-pkg-share mecanum_navigation)/config/twist_mux.yaml'},
+                      {'from': '$(find-pkg-share mecanum_safety)/config/twist_mux.yaml'},
                       {'name': 'use_sim_time', 'value': True}],
                   'remap': [{'from': 'cmd_vel_out', 'to': 'cmd_vel_mux'}]}},
     ]}

@@ -19,6 +19,7 @@ def test_the_seed_packages_exist():
     assert set(PACKAGES) == {
         'mecanum_description', 'mecanum_control', 'mecanum_localization',
         'mecanum_navigation', 'mecanum_bringup', 'robot_controller', 'robot_simulation',
+        'mecanum_safety', 'mecanum_map_server',
         'mecanum_interfaces'}
 
 

@@ -19,8 +19,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped, Twist
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_localization.transforms import PlanarTransform
-from mecanum_navigation.safety.zone import load_zone_file
-from mecanum_navigation.safety.zone_guard import guard_scale
+from mecanum_safety.zone import load_zone_file
+from mecanum_safety.zone_guard import guard_scale
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -33,7 +33,7 @@ pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
 PARAMS = yaml.safe_load(
-    (REPO / 'src/mecanum_navigation/config/zone_guard.yaml').read_text()
+    (REPO / 'src/mecanum_safety/config/zone_guard.yaml').read_text()
 )['zone_guard']['ros__parameters']
 RADIUS_M = load_robot_config(default_config_path()).footprint_radius_m
 SQUARE = 'authorised_zone:\n  include: [[0, 0], [4, 0], [4, 4], [0, 4]]\n'
@@ -46,10 +46,10 @@ AMCL_TOLERANCE_S = 0.5
 def write_launch(directory: Path, zone_file: str) -> Path:
     """Write the test system: the zone guard alone, as command_chain.launch.yaml starts it."""
     launch = {'launch': [
-        {'node': {'pkg': 'mecanum_navigation', 'exec': 'zone_guard', 'name': 'zone_guard',
+        {'node': {'pkg': 'mecanum_safety', 'exec': 'zone_guard', 'name': 'zone_guard',
                   'param': [
                       {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
-                      {'from': '$(find-pkg-share mecanum_navigation)/config/zone_guard.yaml'},
+                      {'from': '$(find-pkg-share mecanum_safety)/config/zone_guard.yaml'},
                       {'name': 'zone_file', 'value': zone_file},
                       {'name': 'use_sim_time', 'value': True}]}},
     ]}
@@ -267,7 +267,7 @@ def test_without_a_zone_every_command_passes(start_system, test_node, tmp_path):
 ])
 def test_bad_parameters_stop_the_node_with_a_clear_message(ros_env, arguments, message):
     result = subprocess.run(
-        ['./mecanum', 'run', 'mecanum_navigation', 'zone_guard', '--ros-args', *arguments],
+        ['./mecanum', 'run', 'mecanum_safety', 'zone_guard', '--ros-args', *arguments],
         env=ros_env, capture_output=True, text=True, timeout=60, cwd=str(REPO))
     output = result.stdout + result.stderr
     assert result.returncode == 2, output

@@ -20,7 +20,7 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
                                        # optional: default the world's test_zone; [] = none;
                                        # or {include: [...], exclude: [[...], ...]}
-                                       # (mecanum_navigation.safety.zone's format)
+                                       # (mecanum_safety.zone's format)
       moving_obstacles: []             # optional, extra ones in the world file's format
       steps:                           # required, at least one, run in order
       - goal: {x: 5.1, y: 6.2, yaw: 0.0, timeout_s: 90}    # NavigateToPose; expect reached
@@ -73,8 +73,8 @@ from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
 from mecanum_control.robot_config import default_config_path, load_robot_config, RobotConfig
 from mecanum_control.yaml_files import load_yaml_file, SAFE_LOADER
-from mecanum_navigation.map_io import find_map_file, MapError
-from mecanum_navigation.safety.zone import parse_zone, Zone, ZoneError
+from mecanum_map_server.map_io import find_map_file, MapError
+from mecanum_safety.zone import parse_zone, Zone, ZoneError
 import numpy as np
 from robot_controller.command_parser import CommandError, CommandLimits, Motion, parse_command
 from robot_simulation.world import (
@@ -86,7 +86,7 @@ Point = Tuple[float, float]
 Pose = Tuple[float, float, float]
 
 #: NavigateToPose result codes (error_code of nav2_msgs' NavigateToPose result, the
-#: navigator's values: mecanum_navigation.navigator); test_scenario checks this table
+#: navigator's values: mecanum_navigation.navigator.navigator); test_scenario checks this table
 #: against them.
 NAVIGATE_TO_POSE_ERRORS: Dict[str, int] = {
     'NONE': 0,
@@ -188,7 +188,7 @@ class CmdVelStep:
     """
     Hold the body twist vx, vy (m/s), wz (rad/s) for duration_s on a command source's topic.
 
-    source names an input of the command chain's twist_mux (mecanum_navigation
+    source names an input of the command chain's twist_mux (mecanum_safety
     config/twist_mux.yaml: 'scenario' by default, 'teleop_keyboard', 'joystick',
     'external', ...); topic is that input's topic. Like every source, it goes through
     the collision monitor and the zone guard.
@@ -263,8 +263,8 @@ class Scenario:
     A validated scenario file.
 
     world_file is the base world file; map_name (the file's ``map``) is a map name
-    (mecanum_navigation/maps) or an absolute path; spawn and initial_pose are (x m, y m,
-    yaw rad); authorised_zone is the Zone (mecanum_navigation.safety.zone) or None (no
+    (mecanum_map_server/maps) or an absolute path; spawn and initial_pose are (x m, y m,
+    yaw rad); authorised_zone is the Zone (mecanum_safety.zone) or None (no
     zone); moving_obstacles
     are the extra entries in the world file's format; world is the built scenario world
     (see scenario_world_document).
@@ -454,7 +454,7 @@ def _world_document(world_file: Path, spawn: Pose, zone: Optional[Zone],
 def command_sources() -> Dict[str, str]:
     """Return {source name: topic} of the command chain's twist_mux (config/twist_mux.yaml)."""
     from ament_index_python.packages import get_package_share_directory
-    path = Path(get_package_share_directory('mecanum_navigation')) / 'config' / 'twist_mux.yaml'
+    path = Path(get_package_share_directory('mecanum_safety')) / 'config' / 'twist_mux.yaml'
     params = yaml.safe_load(path.read_text(encoding='utf-8'))['twist_mux']['ros__parameters']
     return {name: str(entry['topic']) for name, entry in params['topics'].items()}
 

@@ -7,7 +7,7 @@ estimate (``amcl_pose``), the collision count (``simulation/collisions``), the g
 on ``navigate_to_pose`` and FollowWaypoints goals on ``follow_waypoints``, text commands
 on ``control_command`` and body twists (base_link, m/s and rad/s) on a command source's
 topic of the command chain (``cmd_vel_scenario`` by default, ``cmd_vel_teleop``, ...:
-mecanum_navigation config/twist_mux.yaml), so they
+mecanum_safety config/twist_mux.yaml), so they
 go through the mux, the collision monitor and the zone guard like any other. It also
 records every stop of the chain (``collision_monitor_state``, ``zone_guard_state``) and
 every refusal or early stop of robot_controller, where the robot then was. Its clock is

@@ -16,7 +16,7 @@ import xml.etree.ElementTree as ElementTree
 from mecanum_bringup.scenario import (
     distance_travelled_m, GoalStep, localization_errors, RunRecord, Scenario, track_array,
     Verdict, WaypointsStep)
-from mecanum_navigation.safety.zone import Zone
+from mecanum_safety.zone import Zone
 import numpy as np
 
 #: Longest text in the table's last column.
@@ -217,7 +217,7 @@ def plot_run(path_png: Any, occupancy_map: Any, truth: Any, estimate: Any,
     """
     Write a PNG of one run in world coordinates (metres, equal aspect).
 
-    occupancy_map: a mecanum_navigation.map_io.OccupancyMap (data row 0 = lowest y,
+    occupancy_map: a mecanum_map_server.map_io.OccupancyMap (data row 0 = lowest y,
     origin = the lower-left cell corner and yaw) drawn grey (free white, occupied black,
     unknown mid grey), or None. truth (solid) and estimate (dashed): (N, 4) t, x, y, yaw.
     planned_paths: (K, 2) x, y polylines (thin). goals: (x, y[, yaw]) numbered markers.

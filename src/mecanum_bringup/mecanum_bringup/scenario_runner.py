@@ -72,7 +72,7 @@ from mecanum_bringup.scenario import (
     WaitStep, WaypointsStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
-from mecanum_navigation.safety.zone import zone_file_text
+from mecanum_safety.zone import zone_file_text
 import numpy as np
 import yaml
 
@@ -625,7 +625,7 @@ def _wait(duration_s: float, driver, result: StepResult, poll) -> None:
 
 def _plot(scenario: Scenario, record: RunRecord, plans: Sequence[np.ndarray],
           collision_points: Sequence, path_png: Path, verdict: str) -> None:
-    from mecanum_navigation.map_io import find_map_file, load_map
+    from mecanum_map_server.map_io import find_map_file, load_map
     try:
         occupancy = load_map(find_map_file(scenario.map_name))
     except Exception:  # noqa: B902 - a plot without its map is still a plot

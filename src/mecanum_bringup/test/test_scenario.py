@@ -11,8 +11,8 @@ from mecanum_bringup.scenario import (
     judge, load_scenario, localization_errors, NAVIGATE_TO_POSE_ERRORS, RunRecord,
     scenario_world_document, ScenarioError, StepResult, track_array, WaitStep, WaypointsStep)
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_navigation.map_io import find_map_file
-from mecanum_navigation.safety.zone import make_zone
+from mecanum_map_server.map_io import find_map_file
+from mecanum_safety.zone import make_zone
 import numpy as np
 import pytest
 from robot_simulation.world import find_world, load_world
@@ -267,7 +267,7 @@ def test_find_scenarios_lists_yaml_files_sorted(tmp_path):
 
 
 def test_the_error_table_matches_the_navigator_codes():
-    from mecanum_navigation import navigator
+    from mecanum_navigation.navigator import navigator
     codes = {name: value for name, value in vars(navigator).items()
              if re.fullmatch(r'[A-Z_]+', name) and isinstance(value, int) and
              (value == 0 or value >= 9000)}

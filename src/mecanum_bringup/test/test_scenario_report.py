@@ -10,7 +10,7 @@ from mecanum_bringup.scenario import (
     CriterionResult, judge, load_scenario, RunRecord, StepResult, Verdict)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
-from mecanum_navigation.map_io import OccupancyMap
+from mecanum_map_server.map_io import OccupancyMap
 import numpy as np
 import pytest
 from robot_simulation.world import find_world, load_world

@@ -4,7 +4,7 @@ teleop_keyboard: drive the robot from the keyboard, like teleop_twist_keyboard.
 Reads keys from the terminal (stdin in raw mode) and publishes ``cmd_vel_teleop``
 (geometry_msgs/Twist, or TwistStamped with header.frame_id ``frame_id`` when
 ``stamped``; base_link, m/s and rad/s) at once on every key. It is the teleop_keyboard
-input of the robot's command chain (mecanum_navigation config/twist_mux.yaml: above
+input of the robot's command chain (mecanum_safety config/twist_mux.yaml: above
 navigation and text commands, then collision_monitor and zone_guard). The key bindings, the
 holonomic (shift) mode included, are those of teleop_twist_keyboard; they live in
 :mod:`mecanum_control.teleop_keys`.

@@ -1,13 +1,13 @@
-"""Tests of mecanum_navigation.costmap: Nav2 cost values, layers, inflation law (by hand)."""
+"""Tests of costmap.costmap_2d: Nav2 cost values, layers, inflation law (by hand)."""
 
 import math
 
-from mecanum_navigation.costmap import (
+from mecanum_map_server.map_io import OccupancyMap
+from mecanum_navigation.costmap.costmap_2d import (
     COST_TRANSLATION_TABLE, Costmap2D, FREE_SPACE, InflationLayer, INSCRIBED_INFLATED_OBSTACLE,
-    KeepoutLayer, LayeredCostmap, LETHAL_OBSTACLE, NO_INFORMATION, ObstacleLayer,
-    RollingWindow, StaticLayer, ZoneLayer)
-from mecanum_navigation.map_io import OccupancyMap
-from mecanum_navigation.safety.zone import make_zone
+    KeepoutLayer, LayeredCostmap, LETHAL_OBSTACLE, NO_INFORMATION, ObstacleLayer, RollingWindow,
+    StaticLayer, ZoneLayer)
+from mecanum_safety.zone import make_zone
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Tests of mecanum_navigation.local_controller: hand-worked cases and closed-loop runs."""
+"""Tests of controller.local_controller: hand-worked cases and closed-loop runs."""
 
 from dataclasses import dataclass
 import math
@@ -6,7 +6,7 @@ import math
 from hypothesis import given, settings, strategies as st
 from mecanum_control.kinematics import integrate_pose, wrap_angle
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_navigation.local_controller import (
+from mecanum_navigation.controller.local_controller import (
     ControllerParams, LocalController, ProgressChecker, ramp_step, simulate_trajectories,
     STATUS_FOLLOWING, STATUS_GOAL_REACHED, STATUS_NO_VALID_TRAJECTORY, STATUS_ROTATING,
     STATUS_STALE_POSE, trajectory_costs)
@@ -489,10 +489,10 @@ def test_a_tight_corner_is_driven_around_not_stopped_at():
     twist scored best). The carrot is now the farthest path point in sight, so the
     robot drives to the corner, then strafes west (facing north) through the strip.
     """
-    from mecanum_navigation.costmap import (
+    from mecanum_navigation.costmap.costmap_2d import (
         Costmap2D, InflationLayer, LayeredCostmap, StaticLayer)
-    from mecanum_navigation.map_io import find_map_file, load_map
-    from mecanum_navigation.planner import GridPlanner
+    from mecanum_map_server.map_io import find_map_file, load_map
+    from mecanum_navigation.planner.planner import GridPlanner
 
     occupancy = load_map(find_map_file('apartment'))
     costmap = Costmap2D.like_map(occupancy)
@@ -523,10 +523,10 @@ def test_a_robot_stopped_in_front_of_a_narrow_gap_drives_through_it(start):
     progress checker gave up). The cost the path itself crosses is no longer held
     against trajectories, so the robot drives through without touching inscribed cells.
     """
-    from mecanum_navigation.costmap import (
+    from mecanum_navigation.costmap.costmap_2d import (
         Costmap2D, InflationLayer, LayeredCostmap, StaticLayer)
-    from mecanum_navigation.map_io import find_map_file, load_map
-    from mecanum_navigation.planner import GridPlanner
+    from mecanum_map_server.map_io import find_map_file, load_map
+    from mecanum_navigation.planner.planner import GridPlanner
 
     occupancy = load_map(find_map_file('apartment'))
     costmap = Costmap2D.like_map(occupancy)

@@ -1,4 +1,4 @@
-"""Tests of mecanum_navigation.navigator: hand-worked cases and closed-loop runs without ROS."""
+"""Tests of navigator.navigator: hand-worked cases and closed-loop runs without ROS."""
 
 import math
 from pathlib import Path
@@ -7,19 +7,19 @@ import re
 from mecanum_control.kinematics import integrate_pose
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_localization.transforms import PlanarTransform, wrap_angle
-from mecanum_navigation import navigator as nav
-from mecanum_navigation.costmap import (
+from mecanum_map_server.map_io import find_map_file, load_map, OccupancyMap
+from mecanum_navigation.controller.local_controller import (
+    ControllerParams, LocalController, ProgressChecker, STATUS_NO_VALID_TRAJECTORY)
+from mecanum_navigation.costmap.costmap_2d import (
     Costmap2D, InflationLayer, LayeredCostmap, LETHAL_OBSTACLE, RollingWindow, StaticLayer,
     ZoneLayer)
-from mecanum_navigation.local_controller import (
-    ControllerParams, LocalController, ProgressChecker, STATUS_NO_VALID_TRAJECTORY)
-from mecanum_navigation.map_io import find_map_file, load_map, OccupancyMap
-from mecanum_navigation.navigator import (
-    backup_clear, backup_direction, estimated_time_remaining, lethal_points,
-    map_to_odom_transform, Navigator, NavigatorParams, Outcome, path_blocked,
-    project_onto_path, TickInputs, transform_points, ZERO_TWIST)
-from mecanum_navigation.planner import GridPlanner, PlanningError
-from mecanum_navigation.safety.zone import make_zone
+from mecanum_navigation.navigator import navigator as nav
+from mecanum_navigation.navigator.navigator import (
+    backup_clear, backup_direction, estimated_time_remaining, lethal_points, map_to_odom_transform,
+    Navigator, NavigatorParams, Outcome, path_blocked, project_onto_path, TickInputs,
+    transform_points, ZERO_TWIST)
+from mecanum_navigation.planner.planner import GridPlanner, PlanningError
+from mecanum_safety.zone import make_zone
 import numpy as np
 import pytest
 import yaml

@@ -1,9 +1,9 @@
-"""Tests of mecanum_navigation.occupancy_grid_mapping: rays, log-odds, growth, output."""
+"""Tests of mecanum_navigation.slam.occupancy_grid_mapping: rays, log-odds, growth, output."""
 
 import math
 
-from mecanum_navigation.map_io import load_map, save_map, world_to_cell
-from mecanum_navigation.occupancy_grid_mapping import (
+from mecanum_map_server.map_io import load_map, save_map, world_to_cell
+from mecanum_navigation.slam.occupancy_grid_mapping import (
     GridMappingConfig, logit, OccupancyGridMapper, scan_to_rays)
 import numpy as np
 import pytest

@@ -1,9 +1,9 @@
 """
-Tests of mecanum_navigation.particle_filter (nav2_amcl's filter), without ROS.
+Tests of mecanum_navigation.amcl.particle_filter (nav2_amcl's filter), without ROS.
 
 Motion, likelihood, resampling and estimate cases are worked out by hand; localisation
 runs use robot_simulation's lidar in its apartment world with the apartment map of
-maps/, and the parameters of config/amcl.yaml.
+mecanum_map_server's maps/, and the parameters of config/amcl.yaml.
 """
 
 import math
@@ -11,8 +11,8 @@ from pathlib import Path
 
 from mecanum_control.kinematics import integrate_pose
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_navigation.map_io import load_map, OccupancyMap
-from mecanum_navigation.particle_filter import (
+from mecanum_map_server.map_io import find_map_file, load_map, OccupancyMap
+from mecanum_navigation.amcl.particle_filter import (
     AmclConfig, cluster_labels, DEFAULT_INITIAL_COVARIANCE, kld_sample_limit,
     LikelihoodField, low_variance_resample, ParticleFilter, ScanData,
     squared_distance_transform, tempering_exponent, wrap_angles)
@@ -425,7 +425,7 @@ class Apartment:
     def __init__(self, seed: int):
         """Load the world and the map, put the robot at the world's start."""
         self.world = load_world(find_world('apartment'))
-        self.field = LikelihoodField(load_map(PACKAGE / 'maps/apartment.yaml'),
+        self.field = LikelihoodField(load_map(find_map_file('apartment')),
                                      TUNED.laser_likelihood_max_dist)
         self.circles = np.array([(c.center[0], c.center[1], c.radius_m)
                                  for c in self.world.circles]).reshape(-1, 3)

@@ -1,11 +1,11 @@
-"""Tests of mecanum_navigation.planner: hand-worked paths, errors, and optimality."""
+"""Tests of mecanum_navigation.planner.planner: hand-worked paths, errors, and optimality."""
 
 import heapq
 import math
 
-from mecanum_navigation.costmap import (
+from mecanum_navigation.costmap.costmap_2d import (
     Costmap2D, InflationLayer, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION)
-from mecanum_navigation.planner import GridPlanner, path_length, PlanningError
+from mecanum_navigation.planner.planner import GridPlanner, path_length, PlanningError
 import numpy as np
 import pytest
 

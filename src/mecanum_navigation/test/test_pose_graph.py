@@ -1,8 +1,8 @@
-"""Tests of mecanum_navigation.pose_graph: pose algebra, edge errors, LM optimisation."""
+"""Tests of mecanum_navigation.slam.pose_graph: pose algebra, edge errors, LM optimisation."""
 
 import math
 
-from mecanum_navigation.pose_graph import compose, inverse, PoseGraph, relative, wrap_angle
+from mecanum_navigation.slam.pose_graph import compose, inverse, PoseGraph, relative, wrap_angle
 import numpy as np
 import pytest
 

@@ -1,6 +1,6 @@
 """Routes (NavigateThroughPoses, FollowWaypoints sequencing), cases worked out by hand."""
 
-from mecanum_navigation.route import NONE, Route
+from mecanum_navigation.navigator.route import NONE, Route
 import pytest
 
 STUCK = 9104

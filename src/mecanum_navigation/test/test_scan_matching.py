@@ -1,9 +1,9 @@
-"""Tests of mecanum_navigation.scan_matching: distance fields, search, refinement."""
+"""Tests of mecanum_navigation.slam.scan_matching: distance fields, search, refinement."""
 
 import math
 
-from mecanum_navigation.map_io import OccupancyMap
-from mecanum_navigation.scan_matching import (
+from mecanum_map_server.map_io import OccupancyMap
+from mecanum_navigation.slam.scan_matching import (
     LikelihoodField, match_scan, ScanMatcherConfig, squared_distance_transform, voxel_filter)
 import numpy as np
 import pytest

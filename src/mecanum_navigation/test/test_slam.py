@@ -1,11 +1,11 @@
-"""Tests of mecanum_navigation.slam: keyframes, frames, bad input, and a full apartment run."""
+"""Tests of slam.slam: keyframes, frames, bad input, and a full apartment run."""
 
 import math
 import time
 
-from mecanum_navigation.map_io import load_map, OccupancyMap, save_map, world_to_cell
-from mecanum_navigation.pose_graph import compose, relative, wrap_angle
-from mecanum_navigation.slam import occupied_overlap, OnlineSlam, SlamConfig, surface_normals
+from mecanum_map_server.map_io import load_map, OccupancyMap, save_map, world_to_cell
+from mecanum_navigation.slam.pose_graph import compose, relative, wrap_angle
+from mecanum_navigation.slam.slam import occupied_overlap, OnlineSlam, SlamConfig, surface_normals
 import numpy as np
 import pytest
 

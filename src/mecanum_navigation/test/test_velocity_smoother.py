@@ -1,9 +1,9 @@
-"""Hand-worked tests of mecanum_navigation.velocity_smoother (Nav2 velocity_smoother rules)."""
+"""Hand-worked tests of controller.velocity_smoother (Nav2 velocity_smoother rules)."""
 
 import math
 
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_navigation.velocity_smoother import (
+from mecanum_navigation.controller.velocity_smoother import (
     SmootherParams, STATUS_OK, STATUS_STOPPED, STATUS_TIMEOUT, STATUS_WAITING,
     VelocitySmoother)
 import pytest

@@ -56,7 +56,7 @@ Parameters (``config/robot_controller.yaml``): ``linear_speed_mps`` (0.2),
 ``angular_speed_radps`` (0.5), ``max_linear_speed_mps`` (0.5),
 ``max_angular_speed_radps`` (1.5), ``default_duration_s`` (2.0), ``max_duration_s``
 (60.0), ``publish_rate_hz`` (20.0, > 0); ``zone_file`` ('' = no zone, no check; a zone
-file of :mod:`mecanum_navigation.safety.zone`); ``footprint_radius_m`` (> 0; from
+file of :mod:`mecanum_safety.zone`); ``footprint_radius_m`` (> 0; from
 motor_params.yaml, which launch files pass; the installed file's value by default);
 ``zone_margin_m`` (0.05, >= 0); ``global_frame`` ('map'); ``robot_base_frame``
 ('base_link'); ``pose_timeout_s`` (1.0, > 0); ``chain_output_topic`` ('cmd_vel_safe';
@@ -76,7 +76,7 @@ from mecanum_control.parameters import declare_typed
 from mecanum_control.robot_config import default_config_path, parameters_from_yaml
 from mecanum_localization.tf_listener import TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
-from mecanum_navigation.safety.zone import load_zone_file
+from mecanum_safety.zone import load_zone_file
 from rclpy.duration import Duration
 from rclpy.node import Node
 from robot_controller.blocked_detector import BlockedDetector

@@ -3,7 +3,7 @@
 import math
 import re
 
-from mecanum_navigation.safety.zone import make_zone
+from mecanum_safety.zone import make_zone
 import pytest
 from robot_controller.command_parser import CommandLimits, parse_command
 from robot_controller.zone_check import zone_refusal

@@ -47,9 +47,9 @@ import re
 from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
 
 from mecanum_control.yaml_files import load_yaml_file
-from mecanum_navigation.map_io import (
+from mecanum_map_server.map_io import (
     find_map_file, load_map, MapError, OccupancyMap, world_to_cell)
-from mecanum_navigation.safety.zone import parse_zone, points_in_polygon, Zone, ZoneError
+from mecanum_safety.zone import parse_zone, points_in_polygon, Zone, ZoneError
 import numpy as np
 
 PathLike = Union[str, Path]

@@ -8,8 +8,8 @@ Usage::
 The world (an installed world's name or a world file) is rasterised by
 ``World.to_occupancy_map`` (walls, furniture and circles occupied, the rest free or as
 its own map says; moving obstacles left out) and written by
-``mecanum_navigation.map_io.save_map`` (trinary, as map_saver writes). This is how
-``mecanum_navigation/maps/apartment.yaml`` is made; a test checks it is up to date.
+``mecanum_map_server.map_io.save_map`` (trinary, as map_saver writes). This is how
+``mecanum_map_server/maps/apartment.yaml`` is made; a test checks it is up to date.
 """
 
 import argparse
@@ -17,7 +17,7 @@ from pathlib import Path
 import sys
 from typing import List, Optional
 
-from mecanum_navigation.map_io import MapError, save_map
+from mecanum_map_server.map_io import MapError, save_map
 from robot_simulation.world import find_world, load_world, WorldError
 
 

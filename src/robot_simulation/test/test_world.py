@@ -4,7 +4,7 @@ import copy
 import math
 import textwrap
 
-from mecanum_navigation.map_io import OccupancyMap, save_map
+from mecanum_map_server.map_io import OccupancyMap, save_map
 import numpy as np
 import pytest
 from robot_simulation.world import (available_worlds, find_world, load_world, MovingObstacle,

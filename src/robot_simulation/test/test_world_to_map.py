@@ -2,12 +2,12 @@
 
 from pathlib import Path
 
-from mecanum_navigation.map_io import find_map_file, load_map
+from mecanum_map_server.map_io import find_map_file, load_map
 import numpy as np
 from robot_simulation.world import find_world, load_world
 from robot_simulation.world_to_map import main
 
-SOURCE_MAPS = Path(__file__).resolve().parents[2] / 'mecanum_navigation' / 'maps'
+SOURCE_MAPS = Path(__file__).resolve().parents[2] / 'mecanum_map_server' / 'maps'
 
 
 def test_the_committed_apartment_map_is_the_apartment_world(tmp_path):
@@ -16,7 +16,7 @@ def test_the_committed_apartment_map_is_the_apartment_world(tmp_path):
     for name in ('apartment.yaml', 'apartment.pgm'):
         assert (tmp_path / name).read_bytes() == (SOURCE_MAPS / name).read_bytes(), (
             f'{name} is out of date: run ./mecanum run robot_simulation world_to_map '
-            'apartment src/mecanum_navigation/maps/apartment.yaml')
+            'apartment src/mecanum_map_server/maps/apartment.yaml')
 
 
 def test_the_map_marks_walls_and_leaves_rooms_free():
@@ -36,7 +36,7 @@ def test_the_map_marks_walls_and_leaves_rooms_free():
 
 def test_the_lab_world_reads_its_map_from_the_navigation_package():
     world = load_world(find_world('lab'))
-    lab_map = load_map(find_map_file('package://mecanum_navigation/maps/lab_map.yaml'))
+    lab_map = load_map(find_map_file('package://mecanum_map_server/maps/lab_map.yaml'))
     assert world.occupancy is not None
     assert np.array_equal(world.occupancy.data, lab_map.data)
 

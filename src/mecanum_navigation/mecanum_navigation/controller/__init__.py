@@ -1,0 +1,1 @@
+"""The local controller (holonomic trajectory sampling) and the velocity smoother."""

@@ -1,0 +1,1 @@
+"""Costmaps: static, keepout, obstacle and inflation layers, and their compiled kernels."""

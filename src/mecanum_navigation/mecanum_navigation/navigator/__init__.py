@@ -1,0 +1,1 @@
+"""The navigator: goals, route, replanning and recovery behaviours, and its node."""

@@ -1,0 +1,1 @@
+"""The global planner: A* on the costmap, shortcutting and smoothing."""

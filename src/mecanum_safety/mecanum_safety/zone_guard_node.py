@@ -1,0 +1,306 @@
+"""
+zone_guard: keeps every velocity command inside the authorised zone (node zone_guard).
+
+The last stage of the command chain (twist_mux -> collision_monitor -> zone_guard ->
+motor_controller). Every command on ``cmd_vel_in_topic`` ('cmd_vel_monitored';
+geometry_msgs/Twist, body twist in base_link, REP-103) is checked against the authorised
+zone and published on ``cmd_vel_out_topic`` ('cmd_vel_safe'), one output per input, as
+the collision monitor does; with no input nothing is published. The rule is
+:mod:`mecanum_safety.zone_guard`'s: the whole twist is scaled by the largest
+factor in [0, 1] that keeps the footprint circle (``footprint_radius_m`` of
+motor_params.yaml, declared read-only with the robot's other parameters) at least
+``min(footprint_radius_m + margin, its clearance now)`` from the zone's border along the
+motion predicted for ``horizon_s`` (1.0 s). The margin is ``margin_m`` (0.05 m) +
+``covariance_factor`` (2.0) x the localisation's position standard deviation toward the
+border (along the normals of the border edges within reach, the worst direction near a
+vertex; of the x-y covariance of ``pose_covariance_topic``, 'amcl_pose',
+geometry_msgs/PoseWithCovarianceStamped, latched; '' = none), at most ``max_margin_m``
+(0.5 m).
+
+The zone is read once from ``zone_file`` (a standalone zone file, see zones/apartment.yaml;
+'' = no zone declared: every command passes unchanged). The robot's pose is the latest
+``global_frame`` ('map') -> ``robot_base_frame`` ('base_link') transform from /tf and
+/tf_static (map -> odom from amcl or SLAM, odom -> base_link from the EKF); lookups never
+wait. Its age is the node clock's now minus the oldest stamp in the chain (amcl's
+future-dated map -> odom is fine). With no transform, or one older than
+``pose_timeout_s`` (0.5 s), every command is replaced by zero (a throttled warning says
+why). Whatever the pose, a non-finite command is replaced by zero and a command that is
+exactly zero passes.
+
+``state_topic`` ('zone_guard_state', std_msgs/String, transient local; '' = none) says
+what was done to the last command: 'ALLOW', 'SCALE 0.42 (0.31 m from the border)' (the
+footprint's distance to it), 'STOP at the border', 'STOP outside the zone', 'STOP no
+pose: ...', 'STOP invalid command', 'ALLOW zero command (no pose)', 'ALLOW no zone
+declared'; published when the kind of state changes (its words, not its numbers) and at
+most every ``STATE_PERIOD_S`` while it does not. ``/diagnostics``
+(diagnostic_msgs/DiagnosticArray, every second): OK (allowing), WARN (scaling, or no
+pose while idle), ERROR (stopping), with the reason, the pose's age and the margin.
+"""
+
+import math
+import sys
+import time
+from typing import Optional, Tuple
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
+from mecanum_control.log_throttle import KeyedThrottle
+from mecanum_control.messages import diagnostic_array
+from mecanum_control.node_main import run_node
+from mecanum_control.parameters import declare_robot_config, declare_typed
+from mecanum_localization.tf_listener import TransformListener
+from mecanum_localization.transforms import TransformBuffer, TransformError
+from mecanum_safety import zone_guard as guard
+from mecanum_safety.zone import load_zone_file, Zone, ZoneError
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import String
+
+#: Seconds (node clock) between two /diagnostics messages.
+DIAGNOSTICS_PERIOD_S = 1.0
+#: Seconds (steady clock) between two state messages while the kind of state is unchanged.
+STATE_PERIOD_S = 0.5
+#: Seconds between two warnings of the same kind.
+WARNING_PERIOD_S = 2.0
+#: Seconds between two log lines announcing the same kind of state (a command hovering
+#: between two kinds would log every command otherwise).
+STATE_LOG_PERIOD_S = 1.0
+#: A pose stamped further than this in the future (s) is not trusted (a clock mismatch).
+MAX_FUTURE_S = 5.0
+DIAGNOSTIC_NAME = 'zone_guard: Authorised zone'
+
+
+def _components(msg: Twist) -> Tuple[float, ...]:
+    return (msg.linear.x, msg.linear.y, msg.linear.z,
+            msg.angular.x, msg.angular.y, msg.angular.z)
+
+
+def _scaled(msg: Twist, scale: float) -> Twist:
+    out = Twist()
+    out.linear.x, out.linear.y, out.linear.z = (float(scale * v) for v in (
+        msg.linear.x, msg.linear.y, msg.linear.z))
+    out.angular.x, out.angular.y, out.angular.z = (float(scale * v) for v in (
+        msg.angular.x, msg.angular.y, msg.angular.z))
+    return out
+
+
+class ZoneGuardNode(Node):
+    """Scales every command so that the footprint stays inside the authorised zone."""
+
+    def __init__(self, **node_options):
+        super().__init__('zone_guard', **node_options)
+        config = declare_robot_config(self)
+        self.zone_file = declare_typed(self, 'zone_file', '')
+        self.global_frame = declare_typed(self, 'global_frame', 'map').strip('/')
+        self.base_frame = declare_typed(self, 'robot_base_frame', 'base_link').strip('/')
+        for name, frame in (('global_frame', self.global_frame),
+                            ('robot_base_frame', self.base_frame)):
+            if not frame:
+                raise ValueError(f'parameter {name} must not be empty')
+        if self.global_frame == self.base_frame:
+            raise ValueError(f'parameters global_frame and robot_base_frame must differ, '
+                             f'both are {self.global_frame!r}')
+        numbers = {name: declare_typed(self, name, default) for name, default in (
+            ('horizon_s', 1.0), ('margin_m', 0.05), ('covariance_factor', 2.0),
+            ('max_margin_m', 0.5))}
+        self.pose_timeout_s = declare_typed(self, 'pose_timeout_s', 0.5)
+        if not (math.isfinite(self.pose_timeout_s) and self.pose_timeout_s > 0.0):
+            raise ValueError(f'parameter pose_timeout_s must be a finite number > 0, got '
+                             f'{self.pose_timeout_s!r}')
+        covariance_topic = declare_typed(self, 'pose_covariance_topic', 'amcl_pose')
+        cmd_in = declare_typed(self, 'cmd_vel_in_topic', 'cmd_vel_monitored')
+        cmd_out = declare_typed(self, 'cmd_vel_out_topic', 'cmd_vel_safe')
+        state_topic = declare_typed(self, 'state_topic', 'zone_guard_state')
+        for name, topic in (('cmd_vel_in_topic', cmd_in), ('cmd_vel_out_topic', cmd_out)):
+            if not topic:
+                raise ValueError(f'parameter {name} must not be empty')
+        zone: Optional[Zone] = None
+        if self.zone_file:
+            try:
+                zone = load_zone_file(self.zone_file)
+            except ZoneError as error:   # names the file and the key
+                raise ValueError(f'parameter zone_file: {error}') from None
+        try:
+            self.guard = guard.ZoneGuard(zone, config.footprint_radius_m, **numbers)
+        except ValueError as error:
+            raise ValueError(f'parameter {error}') from None
+        self.frames = TransformBuffer()
+        self._warnings = KeyedThrottle(WARNING_PERIOD_S)
+        self._state_logs = KeyedThrottle(STATE_LOG_PERIOD_S)
+        self.sigma_xy_m = 0.0          # no covariance heard yet: margin_m alone
+        self.covariance = None         # the last pose covariance heard (36 values)
+        self.sigma_used_m = 0.0        # sigma toward the border of the last command
+        self.covariance_count = 0
+        self.commands = 0
+        self._state = ('', '')         # (kind, text) of the last command's state
+        self._state_published_at = -math.inf
+        self._level = DiagnosticStatus.OK
+        self._last_result: Optional[guard.GuardResult] = None
+
+        self.cmd_pub = self.create_publisher(Twist, cmd_out, 10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.state_pub = (self.create_publisher(String, state_topic, latched)
+                          if state_topic else None)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.tf_listener = TransformListener(self, self.frames)
+        self.covariance_sub = (
+            self.create_subscription(PoseWithCovarianceStamped, covariance_topic,
+                                     self.on_pose_covariance, latched)
+            if covariance_topic else None)
+        self.cmd_sub = self.create_subscription(Twist, cmd_in, self.on_command, 10)
+        self.diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
+        if zone is None:
+            zone_text = ('no zone declared (zone_file empty)' if not self.zone_file
+                         else f'no zone declared in {self.zone_file}')
+        else:
+            zone_text = (f'zone from {self.zone_file} ({len(zone.include)} vertices, '
+                         f'{len(zone.exclude)} exclusions)')
+        self.get_logger().info(
+            f'Zone guard started: {self.cmd_sub.topic_name} -> {self.cmd_pub.topic_name}; '
+            f'{zone_text}; footprint {self.guard.footprint_radius_m:g} m, margin '
+            f'{self.guard.margin_m:g} m (+ {self.guard.covariance_factor:g} sigma, at most '
+            f'{self.guard.max_margin_m:g} m), horizon {self.guard.horizon_s:g} s; pose '
+            f'{self.global_frame} -> {self.base_frame} within {self.pose_timeout_s:g} s')
+
+    # -- helpers ------------------------------------------------------------------------
+
+    def _now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _warn(self, key: str, text: str) -> None:
+        """Log a warning, at most once per WARNING_PERIOD_S for the same key."""
+        if self._warnings.ready(key):
+            self.get_logger().warning(text)
+
+    def robot_pose(self) -> Tuple[Optional[Tuple[float, float, float]], str, str]:
+        """
+        Return ((x, y, yaw) of robot_base_frame in global_frame, '', '') if fresh.
+
+        Otherwise (None, the state's reason, a longer explanation for the log).
+        """
+        chain = f'{self.global_frame} -> {self.base_frame}'
+        try:
+            transform = self.frames.lookup(self.global_frame, self.base_frame)
+        except TransformError as error:
+            return None, f'no pose: no transform {chain} (localisation not running?)', (
+                f'no transform {chain} yet: {error}')
+        oldest = self.frames.oldest_link(self.global_frame, self.base_frame)
+        if oldest is not None:
+            age = self._now_s() - oldest[0]
+            if age > self.pose_timeout_s:
+                return None, (f'no pose: {chain} older than {self.pose_timeout_s:g} s '
+                              '(localisation lost?)'), (
+                    f'{chain} is {age:.2f} s old (its oldest link {oldest[1]}), more than '
+                    f'pose_timeout_s {self.pose_timeout_s:g} s')
+            if age < -MAX_FUTURE_S:
+                return None, f'no pose: {chain} stamped in the future (clock mismatch?)', (
+                    f'{chain} is stamped {-age:.2f} s in the future (its oldest link '
+                    f'{oldest[1]}): a clock mismatch?')
+        return (transform.x, transform.y, transform.yaw), '', ''
+
+    def _set_state(self, kind: str, text: str, level: bytes) -> None:
+        """Publish the state when its kind changes, else at most every STATE_PERIOD_S."""
+        now = time.monotonic()
+        changed = kind != self._state[0]
+        self._state = (kind, text)
+        self._level = level
+        if changed and self._state_logs.ready(kind):
+            self.get_logger().info(f'Zone guard: {text}')
+        if self.state_pub is not None and (
+                changed or now - self._state_published_at >= STATE_PERIOD_S):
+            self.state_pub.publish(String(data=text))
+            self._state_published_at = now
+
+    # -- callbacks ----------------------------------------------------------------------
+
+    def on_pose_covariance(self, msg: PoseWithCovarianceStamped) -> None:
+        """Keep the localisation's position uncertainty (worst direction, m)."""
+        sigma = guard.sigma_xy(msg.pose.covariance)
+        if not math.isfinite(sigma):
+            self._warn('covariance', f'unusable pose covariance (sigma_xy {sigma}): using '
+                       f'max_margin_m {self.guard.max_margin_m:g} m')
+        self.sigma_xy_m = sigma
+        self.covariance = tuple(msg.pose.covariance)
+        self.covariance_count += 1
+
+    def on_command(self, msg: Twist) -> None:
+        """Publish the allowed twist for one command and the state."""
+        self.commands += 1
+        values = _components(msg)
+        if not all(math.isfinite(v) for v in values):
+            self._warn('command', f'non-finite command {values}: publishing zero')
+            self.cmd_pub.publish(Twist())
+            self._set_state('STOP invalid', f'STOP {guard.REASON_INVALID_COMMAND}',
+                            DiagnosticStatus.ERROR)
+            return
+        if self.guard.zone is None:
+            self.cmd_pub.publish(msg)
+            self._set_state('ALLOW none', 'ALLOW no zone declared', DiagnosticStatus.OK)
+            return
+        pose, reason, explanation = self.robot_pose()
+        if pose is None:
+            self.cmd_pub.publish(Twist())
+            if all(v == 0.0 for v in values):
+                self._set_state('ALLOW zero', 'ALLOW zero command (no pose)',
+                                DiagnosticStatus.WARN)
+                return
+            self._warn(f'pose {reason}', f'{explanation}: stopping')
+            self._set_state(f'STOP {reason}', f'STOP {reason}', DiagnosticStatus.ERROR)
+            return
+        twist = (msg.linear.x, msg.linear.y, msg.angular.z)
+        if self.covariance is not None:
+            self.sigma_used_m = self.guard.sigma(pose, twist, self.covariance)
+        else:
+            self.sigma_used_m = self.sigma_xy_m
+        result = self.guard.step(pose, twist, self.sigma_used_m)
+        self._last_result = result
+        if all(v == 0.0 for v in values) or result.scale >= 1.0:
+            self.cmd_pub.publish(msg)
+            self._set_state('ALLOW', 'ALLOW', DiagnosticStatus.OK)
+            return
+        self.cmd_pub.publish(_scaled(msg, result.scale))
+        if result.scale > 0.0:
+            gap = result.gap_m(self.guard.footprint_radius_m)
+            self._set_state('SCALE', f'SCALE {result.scale:.2f} ({gap:.2f} m from the border)',
+                            DiagnosticStatus.WARN)
+        else:
+            self._set_state(f'STOP {result.reason}', f'STOP {result.reason}',
+                            DiagnosticStatus.ERROR)
+
+    def publish_diagnostics(self) -> None:
+        """Report the last decision, the pose and the margin on /diagnostics."""
+        level, message = self._level, self._state[1] or 'no command yet'
+        values = [KeyValue(key='zone file', value=self.zone_file or '(none)'),
+                  KeyValue(key='commands', value=str(self.commands))]
+        if self.guard.zone is not None:
+            pose, reason, _ = self.robot_pose()
+            if pose is None:
+                values.append(KeyValue(key='pose', value=reason))
+                if level == DiagnosticStatus.OK:
+                    level, message = DiagnosticStatus.WARN, reason
+            else:
+                clearance = float(self.guard.zone.clearance([pose[0]], [pose[1]])[0])
+                values += [KeyValue(key='pose', value=f'({pose[0]:.2f}, {pose[1]:.2f}, '
+                                                      f'{pose[2]:.2f})'),
+                           KeyValue(key='distance to the border (m)',
+                                    value=f'{clearance - self.guard.footprint_radius_m:.3f}')]
+            values += [KeyValue(key='sigma_xy (m)', value=f'{self.sigma_xy_m:.3f}'),
+                       KeyValue(key='sigma toward the border (m)',
+                                value=f'{self.sigma_used_m:.3f}'),
+                       KeyValue(key='covariance messages', value=str(self.covariance_count)),
+                       KeyValue(key='margin (m)',
+                                value=f'{self.guard.margin(self.sigma_used_m):.3f}')]
+            if self._last_result is not None:
+                values.append(KeyValue(key='last scale',
+                                       value=f'{self._last_result.scale:.3f}'))
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), DIAGNOSTIC_NAME, level, message, values))
+
+
+def main(args=None) -> int:
+    """Run the zone guard until Ctrl-C or SIGTERM."""
+    return run_node(ZoneGuardNode, 'zone_guard', args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
