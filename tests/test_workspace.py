@@ -1,5 +1,6 @@
 """The workspace is a proper colcon workspace that an apt ROS 2 install can build."""
 
+import ast
 import os
 from pathlib import Path
 import subprocess
@@ -87,3 +88,95 @@ def test_installed_executables_run_directly():
     missing = subprocess.run([str(REPO / 'mecanum'), 'run', 'robot_controller', 'nope'],
                              capture_output=True, text=True, timeout=60)
     assert missing.returncode == 2 and "No executable 'nope'" in missing.stderr
+
+
+# The house: each workspace package imports only packages of the floors below it, so
+# the dependency graph has no cycle and no arrow back up (the chain and the maps below
+# navigation, navigation below the simulator's and the robot's launch).
+FLOORS = [
+    ['mecanum_interfaces'],
+    ['mecanum_control'],
+    ['mecanum_description', 'mecanum_localization'],
+    ['mecanum_map_server', 'mecanum_safety'],
+    ['mecanum_navigation', 'robot_controller', 'robot_simulation'],
+    ['mecanum_bringup'],
+]
+# Inside mecanum_navigation, by Nav2's concerns: each subpackage imports only earlier ones.
+NAVIGATION_FLOORS = ['costmap', 'planner', 'controller', 'amcl', 'slam', 'navigator']
+
+
+def workspace_imports(folder: Path, names) -> dict:
+    """Return {imported dotted module: [file:line, ...]} of folder's .py files within names."""
+    found = {}
+    for path in sorted(folder.rglob('*.py')):
+        tree = ast.parse(path.read_text(encoding='utf-8'), str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                modules = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                modules = [node.module] + [f'{node.module}.{a.name}' for a in node.names]
+            else:
+                continue
+            for module in modules:
+                if module.split('.')[0] in names:
+                    found.setdefault(module, []).append(
+                        f'{path.relative_to(REPO)}:{node.lineno}')
+    return found
+
+
+def test_the_floors_name_every_package_once():
+    listed = [package for floor in FLOORS for package in floor]
+    assert sorted(listed) == PACKAGES
+
+
+@pytest.mark.parametrize('package', PYTHON_PACKAGES)
+def test_a_package_imports_only_floors_below_it_and_declares_them(package):
+    """No arrow back up, none across a floor (but in tests), each one in package.xml."""
+    floor_of = {p: i for i, floor in enumerate(FLOORS) for p in floor}
+    manifest = parse_package(REPO / 'src' / package / 'package.xml')
+    declared = {d.name for d in manifest.exec_depends + manifest.test_depends}
+    wrong = []
+    for folder, allowed in ((REPO / 'src' / package / package, 'exec'),
+                            (REPO / 'src' / package / 'test', 'test')):
+        for module, places in workspace_imports(folder, floor_of).items():
+            target = module.split('.')[0]
+            if target == package:
+                continue
+            # Tests may also use a package beside theirs (the simulator's lidar model),
+            # never one above.
+            above = floor_of[target] > floor_of[package] if allowed == 'test' else (
+                floor_of[target] >= floor_of[package])
+            if above:
+                wrong.append(f'{places[0]} imports {module} (floor {floor_of[target]}, '
+                             f'{package} is on floor {floor_of[package]})')
+            elif target not in declared:
+                wrong.append(f'{places[0]} imports {module}, not in package.xml')
+    assert not wrong, '\n'.join(wrong)
+
+
+def test_navigation_subpackages_import_only_earlier_concerns():
+    root = REPO / 'src/mecanum_navigation/mecanum_navigation'
+    assert sorted(p.name for p in root.iterdir() if (p / '__init__.py').exists()) == sorted(
+        NAVIGATION_FLOORS)
+    assert sorted(p.name for p in root.glob('*.py')) == ['__init__.py']
+    wrong = []
+    for index, concern in enumerate(NAVIGATION_FLOORS):
+        imports = workspace_imports(root / concern, {'mecanum_navigation'})
+        for module, places in imports.items():
+            parts = module.split('.')
+            if len(parts) < 2 or parts[1] == concern:
+                continue
+            if parts[1] not in NAVIGATION_FLOORS[:index]:
+                wrong.append(f'{places[0]} ({concern}) imports {module}')
+    assert not wrong, '\n'.join(wrong)
+
+
+@pytest.mark.parametrize('package', ['robot_controller', 'robot_simulation', 'mecanum_safety',
+                                     'mecanum_map_server'])
+def test_the_zone_and_the_maps_are_read_without_navigation(package):
+    """The chain, robot_controller and the simulator read zones and maps, not navigation."""
+    root = REPO / 'src' / package
+    imports = workspace_imports(root, {'mecanum_navigation'})
+    assert not imports, imports
+    manifest = parse_package(root / 'package.xml')
+    assert 'mecanum_navigation' not in {d.name for d in manifest.exec_depends}
