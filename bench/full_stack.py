@@ -30,7 +30,7 @@ import tempfile
 import threading
 import time
 
-from mecanum_bringup.scenario import load_scenario
+from mecanum_bringup.scenario_loader import load_scenario
 from mecanum_bringup.scenario_runner import parse_real_time_factor, run_scenario, RunOptions
 
 REPO = Path(__file__).resolve().parents[1]

@@ -34,6 +34,8 @@ import tempfile
 import threading
 import time
 
+from mecanum_control.angles import wrap_angle, yaw_from_quaternion
+
 REPO = Path(__file__).resolve().parents[1]
 
 #: The route, relative to the start pose (world frame): ('goto', dx m, dy m, yaw deg)
@@ -53,11 +55,6 @@ REST_BEFORE_DRIVING_S = 5.0
 MAX_SPEED_M_S = 0.5
 MAX_TURN_RAD_S = 2.0
 GAIN_PER_S = 2.5
-
-
-def wrap(angle):
-    """Wrap an angle to [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 class Driver:
@@ -90,11 +87,11 @@ class Driver:
 
     def on_odometry(self, key, msg):
         """Record one pose (stamp s, x, y, yaw) of a track."""
-        pose = msg.pose.pose
-        yaw = 2.0 * math.atan2(pose.orientation.z, pose.orientation.w)
+        pose, q = msg.pose.pose, msg.pose.pose.orientation
+        yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         with self.lock:
-            self.tracks[key].append((stamp, pose.position.x, pose.position.y, wrap(yaw)))
+            self.tracks[key].append((stamp, pose.position.x, pose.position.y, wrap_angle(yaw)))
             if key == 'truth':
                 self.truth = (pose.position.x, pose.position.y, yaw)
 
@@ -115,7 +112,7 @@ class Driver:
         done = False
         if leg[0] == 'goto':
             dx, dy = sx + leg[1] - x, sy + leg[2] - y
-            dyaw = wrap(syaw + math.radians(leg[3]) - yaw)
+            dyaw = wrap_angle(syaw + math.radians(leg[3]) - yaw)
             distance = math.hypot(dx, dy)
             speed = min(MAX_SPEED_M_S, GAIN_PER_S * distance)
             if distance > 1e-9:
@@ -125,7 +122,7 @@ class Driver:
         else:
             if self.spin_from is None:
                 self.spin_from, self.spun = yaw, 0.0
-            self.spun += wrap(yaw - self.spin_from)
+            self.spun += wrap_angle(yaw - self.spin_from)
             self.spin_from = yaw
             remaining = 2 * math.pi * leg[1] - self.spun
             wz = math.copysign(min(MAX_TURN_RAD_S, GAIN_PER_S * abs(remaining)), remaining)

@@ -20,7 +20,7 @@ import statistics
 import sys
 import tempfile
 
-from mecanum_bringup.scenario import load_scenario
+from mecanum_bringup.scenario_loader import load_scenario
 from mecanum_bringup.scenario_runner import run_scenario, RunOptions
 import numpy as np
 

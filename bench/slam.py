@@ -24,7 +24,8 @@ import sys
 import tempfile
 import time
 
-from mecanum_navigation.slam.pose_graph import compose, relative, wrap_angle
+from mecanum_control.angles import wrap_angle
+from mecanum_navigation.slam.pose_graph import compose, relative
 from mecanum_navigation.slam.slam import occupied_overlap, OnlineSlam, SlamConfig
 import numpy as np
 from robot_simulation.sensors import Lidar, LidarConfig

@@ -19,9 +19,9 @@ import time
 
 from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, TransformStamped, Twist
 from mecanum_bringup.system_description import load_system
-from mecanum_control.kinematics import quaternion_from_yaw, yaw_from_quaternion
+from mecanum_control.angles import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_localization.transforms import PlanarTransform, wrap_angle
+from mecanum_localization.transforms import PlanarTransform
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest

@@ -17,7 +17,7 @@ import threading
 import time
 
 from geometry_msgs.msg import Twist
-from mecanum_control.kinematics import yaw_from_quaternion
+from mecanum_control.angles import yaw_from_quaternion
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from nav_msgs.msg import Odometry
 import pytest

@@ -23,7 +23,7 @@ import subprocess
 import time
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
-from mecanum_control.kinematics import quaternion_from_yaw, yaw_from_quaternion
+from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_interfaces.srv import SetPose
 from nav_msgs.msg import Odometry

@@ -21,9 +21,9 @@ import time
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped, Twist
 from mecanum_bringup.system_description import load_system
-from mecanum_control.kinematics import quaternion_from_yaw, yaw_from_quaternion
+from mecanum_control.angles import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_localization.transforms import PlanarTransform, wrap_angle
+from mecanum_localization.transforms import PlanarTransform
 from mecanum_map_server.map_io import OccupancyMap, save_map
 from mecanum_navigation.navigator import navigator as R
 from mecanum_safety.zone import make_zone, zone_file_text

@@ -33,7 +33,7 @@ from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
-from mecanum_bringup.scenario import load_scenario, ScenarioError
+from mecanum_bringup.scenario_loader import load_scenario, ScenarioError
 from mecanum_bringup.scenario_runner import (
     interrupt, INTERRUPTED, parse_real_time_factor, run_scenario, RunOptions, SIGNAL_NAMES,
     stopping_cleanly_on_signals)

@@ -31,7 +31,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
-from mecanum_bringup.scenario import command_sources
+from mecanum_bringup.scenario_loader import command_sources
+from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.node_main import make_executor
 from nav2_msgs.action import FollowWaypoints, NavigateToPose
 from nav_msgs.msg import Odometry, Path
@@ -58,17 +59,13 @@ LOCKSTEP_NAME = 'scenario_runner'
 Poll = Callable[[], float]
 
 
-def _yaw(q) -> float:
-    return 2.0 * math.atan2(q.z, q.w)
-
-
 def map_pose(x: float, y: float, yaw: float) -> PoseStamped:
     """Return a PoseStamped in the map frame (m, rad)."""
     pose = PoseStamped()
     pose.header.frame_id = 'map'
     pose.pose.position.x, pose.pose.position.y = float(x), float(y)
-    pose.pose.orientation.z = math.sin(yaw / 2.0)
-    pose.pose.orientation.w = math.cos(yaw / 2.0)
+    q = pose.pose.orientation
+    q.x, q.y, q.z, q.w = quaternion_from_yaw(yaw)
     return pose
 
 
@@ -212,16 +209,16 @@ class ScenarioDriver:
     # --- what it records ---------------------------------------------------------------
 
     def _on_truth(self, msg: Odometry) -> None:
-        pose = msg.pose.pose
+        pose, q = msg.pose.pose, msg.pose.pose.orientation
         with self._lock:
             self._truth.append((_stamp_s(msg.header.stamp), pose.position.x,
-                                pose.position.y, _yaw(pose.orientation)))
+                                pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
 
     def _on_estimate(self, msg: PoseWithCovarianceStamped) -> None:
-        pose = msg.pose.pose
+        pose, q = msg.pose.pose, msg.pose.pose.orientation
         with self._lock:
             self._estimate.append((_stamp_s(msg.header.stamp), pose.position.x,
-                                   pose.position.y, _yaw(pose.orientation)))
+                                   pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
 
     def _on_collisions(self, msg: UInt32) -> None:
         with self._lock:

@@ -1,7 +1,7 @@
 """
 Reports of scenario runs: a text table, JUnit XML, a JSON summary and a plot (pure, no ROS).
 
-Inputs come from :mod:`mecanum_bringup.scenario` (Scenario, RunRecord, Verdict) and the
+Inputs come from :mod:`mecanum_bringup.scenario_model` (Scenario, RunRecord, Verdict) and the
 runner (wall-clock time). Tracks are (N, 4) arrays of t, x, y, yaw in the map frame
 (metres, seconds, radians; REP-103). The plot is drawn with matplotlib's object API on
 an Agg canvas (no pyplot, no display, no global backend change).
@@ -13,9 +13,8 @@ import re
 from typing import Any, Dict, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
-from mecanum_bringup.scenario import (
-    distance_travelled_m, GoalStep, localization_errors, RunRecord, Scenario, track_array,
-    Verdict, WaypointsStep)
+from mecanum_bringup.scenario_judge import distance_travelled_m, localization_errors, track_array
+from mecanum_bringup.scenario_model import GoalStep, RunRecord, Scenario, Verdict, WaypointsStep
 from mecanum_safety.zone import Zone
 import numpy as np
 

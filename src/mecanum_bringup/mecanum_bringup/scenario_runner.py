@@ -7,7 +7,7 @@ Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``):
         [--junit FILE] [--real-time-factor X|max] [--no-lockstep] [--record] [--foxglove]
         [--no-compose] [--jobs N] [--quiet]
 
-PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario` for the
+PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario_loader` for the
 format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
 isolated: in a ROS domain no other process of this machine holds, with localhost-only
 discovery, in its own processes (mecanum_bringup robot.launch through the launch
@@ -66,10 +66,12 @@ import uuid
 from mecanum_bringup.isolation import (
     isolated_environment, lease_domain_id, processes_with_variable)
 from mecanum_bringup.launch_runner import die_with_parent
-from mecanum_bringup.scenario import (
-    CmdVelStep, CommandStep, error_label, find_scenarios, FreezeStep, GoalStep, judge,
-    load_scenario, RunRecord, Scenario, scenario_world_document, ScenarioError, StepResult,
-    WaitStep, WaypointsStep)
+from mecanum_bringup.scenario_judge import error_label, judge
+from mecanum_bringup.scenario_loader import (
+    find_scenarios, load_scenario, scenario_world_document, ScenarioError)
+from mecanum_bringup.scenario_model import (
+    CmdVelStep, CommandStep, FreezeStep, GoalStep, RunRecord, Scenario, StepResult, WaitStep,
+    WaypointsStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
 from mecanum_safety.zone import zone_file_text

@@ -37,7 +37,7 @@ the earlier variants and a variant's values do not depend on the other axes.
 e.g. ``sweep.yaml:7: axes.seed.range: must be [lo, hi] integers with lo < hi``.
 :func:`variants` lists the :class:`Variant` s; :func:`variant_documents` turns one into
 the scenario document (and, for the person axis, the world document) that the runner
-writes and loads with :func:`mecanum_bringup.scenario.load_scenario`, which checks it
+writes and loads with :func:`mecanum_bringup.scenario_loader.load_scenario`, which checks it
 like any scenario file (a spawn in a wall is an error naming the variant).
 """
 
@@ -48,10 +48,9 @@ import json
 import math
 from pathlib import Path
 import random
-import re
-from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
-from mecanum_control.yaml_files import load_yaml_file_with_nodes
+from mecanum_control.yaml_files import DocumentChecker, key_lines, load_yaml_file_with_nodes
 import yaml
 
 PathLike = Union[str, Path]
@@ -64,7 +63,6 @@ SWEEP_KEYS = ('name', 'scenario', 'mode', 'samples', 'master_seed', 'axes', 'des
 PERSON_KEYS = ('name', 'speed_m_s', 'path', 'loop', 'radius_m')
 #: Most variants a sweep may have (a typo in a grid should not start a month of runs).
 MAX_VARIANTS = 10000
-_NAME = re.compile(r'[A-Za-z0-9_-]+')
 
 
 class SweepError(ValueError):
@@ -131,89 +129,25 @@ def load_sweep(path: PathLike) -> Sweep:
     path = Path(path)
     # One parse: the node tree gives the keys' lines, the document is built from it.
     doc, node = load_yaml_file_with_nodes(path, 'sweep file', SweepError)
-    lines: Dict[str, int] = {}
-    if node is not None:
-        _key_lines(node, '', lines)
-    return _Parser(path, lines).parse(doc)
+    return _Parser(path, key_lines(node)).parse(doc)
 
 
-def _key_lines(node: yaml.Node, key: str, lines: Dict[str, int]) -> None:
-    """Record the line (from 1) of every key path in a composed YAML node tree."""
-    lines.setdefault(key, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        for key_node, value_node in node.value:
-            child = f'{key}.{key_node.value}' if key else str(key_node.value)
-            lines[child] = key_node.start_mark.line + 1
-            _key_lines(value_node, child, lines)
-    elif isinstance(node, yaml.SequenceNode):
-        for index, item in enumerate(node.value):
-            _key_lines(item, f'{key}[{index}]', lines)
-
-
-class _Parser:
+class _Parser(DocumentChecker):
     """Checks one sweep document; every failure names the file, the line and the key."""
 
     def __init__(self, path: Path, lines: Dict[str, int]):
+        super().__init__(SweepError, path.name, lines)
         self.path = path
-        self.lines = lines
-
-    def fail(self, key: str, message: str) -> NoReturn:
-        """Raise SweepError for key, with the line of the key (or of its nearest parent)."""
-        probe = key
-        while probe and probe not in self.lines:
-            probe = re.sub(r'(\.[^.\[]*|\[\d+\])$', '', probe)
-        line = self.lines.get(probe)
-        where = f'{self.path.name}:{line}' if line else self.path.name
-        raise SweepError(f'{where}: {key}: {message}' if key else f'{where}: {message}')
-
-    def mapping(self, value: Any, key: str, required: Sequence[str],
-                optional: Sequence[str]) -> Dict[str, Any]:
-        """Check value is a mapping with the required keys and no unknown ones."""
-        allowed = ', '.join(list(required) + list(optional))
-        if not isinstance(value, dict):
-            self.fail(key, f'must be a mapping with keys {allowed}, not {value!r}')
-        for name in value:
-            if name not in required and name not in optional:
-                self.fail(f'{key}.{name}' if key else str(name),
-                          f'unknown key (allowed: {allowed})')
-        for name in required:
-            if name not in value:
-                self.fail(key, f"missing key '{name}'")
-        return value
-
-    def integer(self, value: Any, key: str, minimum: int) -> int:
-        """Return value if it is an integer >= minimum."""
-        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            self.fail(key, f'must be an integer >= {minimum}, not {value!r}')
-        return value
-
-    def number(self, value: Any, key: str, minimum: float = -math.inf) -> float:
-        """Return value as a finite float >= minimum."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value):
-            self.fail(key, f'must be a finite number, not {value!r}')
-        if value < minimum:
-            self.fail(key, f'must be >= {minimum:g}, not {value!r}')
-        return float(value)
 
     def parse(self, doc: Any) -> Sweep:
         """Check the whole document and return the Sweep."""
-        if not isinstance(doc, dict) or 'sweep' not in doc:
-            self.fail('', 'expected a top-level "sweep:" mapping')
-        if len(doc) != 1:
-            other = next(key for key in doc if key != 'sweep')
-            self.fail(str(other), 'unknown top-level key (only "sweep:" is allowed)')
-        raw = self.mapping(doc['sweep'], 'sweep', ('name', 'scenario', 'axes'),
+        raw = self.mapping(self.document(doc, 'sweep'), 'sweep', ('name', 'scenario', 'axes'),
                            [k for k in SWEEP_KEYS if k not in ('name', 'scenario', 'axes')])
-        name = raw['name']
-        if not isinstance(name, str) or not _NAME.fullmatch(name):
-            self.fail('sweep.name', f'must be letters, digits, _ and - only, not {name!r}')
+        name = self.identifier(raw['name'], 'sweep.name')
         description = raw.get('description') or ''
         if not isinstance(description, str):
             self.fail('sweep.description', f'must be a string, not {description!r}')
-        mode = raw.get('mode', 'grid')
-        if mode not in MODES:
-            self.fail('sweep.mode', f'must be one of {", ".join(MODES)}, not {mode!r}')
+        mode = self.choice(raw.get('mode', 'grid'), 'sweep.mode', MODES)
         scenario_file, scenario_doc = self.scenario(raw['scenario'])
         goal_count = sum(1 for step in scenario_doc['scenario'].get('steps') or []
                          if isinstance(step, dict) and 'goal' in step)
@@ -272,8 +206,8 @@ class _Parser:
         check = {
             'seed': lambda v, k: self.integer(v, k, 0),
             'world': self.world,
-            'floor_friction_coefficient': lambda v, k: self.number(v, k, 0.0),
-            'sensor_noise_scale': lambda v, k: self.number(v, k, 0.0),
+            'floor_friction_coefficient': lambda v, k: self.number(v, k, minimum=0.0),
+            'sensor_noise_scale': lambda v, k: self.number(v, k, minimum=0.0),
             'spawn': self.pose,
             'person': self.person,
             'goals': lambda v, k: self.goal_subset(v, k, goal_count),
@@ -304,7 +238,7 @@ class _Parser:
         if kind == 'range':
             lo, hi = (self.integer(b, where, 0) for b in bounds)
         else:
-            lo, hi = (self.number(b, where, 0.0) for b in bounds)
+            lo, hi = (self.number(b, where, minimum=0.0) for b in bounds)
         if not lo < hi:
             self.fail(where, f'must be [lo, hi] with lo < hi, not {bounds!r}')
         return {kind: [lo, hi]}
@@ -333,8 +267,8 @@ class _Parser:
         if not raw:
             self.fail(key, f'must change at least one of {", ".join(PERSON_KEYS[1:])}')
         changes = dict(raw)
-        if 'speed_m_s' in raw and self.number(raw['speed_m_s'], f'{key}.speed_m_s') <= 0:
-            self.fail(f'{key}.speed_m_s', f'must be > 0, not {raw["speed_m_s"]!r}')
+        if 'speed_m_s' in raw:
+            self.positive(raw['speed_m_s'], f'{key}.speed_m_s')
         if 'name' in raw and (not isinstance(raw['name'], str) or not raw['name']):
             self.fail(f'{key}.name', f'must be a moving obstacle name, not {raw["name"]!r}')
         return changes

@@ -47,7 +47,7 @@ import sys
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, TextIO
 
-from mecanum_bringup.scenario import load_scenario, ScenarioError
+from mecanum_bringup.scenario_loader import load_scenario, ScenarioError
 from mecanum_bringup.scenario_runner import (
     interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, run_scenario,
     RunOptions, stopping_cleanly_on_signals)

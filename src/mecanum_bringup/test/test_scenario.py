@@ -6,10 +6,12 @@ import re
 import shutil
 import textwrap
 
-from mecanum_bringup.scenario import (
-    build_world, CmdVelStep, CommandStep, Criteria, find_scenarios, FreezeStep, GoalStep,
-    judge, load_scenario, localization_errors, NAVIGATE_TO_POSE_ERRORS, RunRecord,
-    scenario_world_document, ScenarioError, StepResult, track_array, WaitStep, WaypointsStep)
+from mecanum_bringup.scenario_judge import judge, localization_errors, track_array
+from mecanum_bringup.scenario_loader import (
+    build_world, find_scenarios, load_scenario, scenario_world_document, ScenarioError)
+from mecanum_bringup.scenario_model import (
+    CmdVelStep, CommandStep, Criteria, FreezeStep, GoalStep, NAVIGATE_TO_POSE_ERRORS, RunRecord,
+    StepResult, WaitStep, WaypointsStep)
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_map_server.map_io import find_map_file
 from mecanum_safety.zone import make_zone
@@ -345,7 +347,12 @@ BAD_BODIES = [
     ('  moving_obstacles: {name: cat}\n' + STEPS, 'moving_obstacles: must be a list'),
     ('  moving_obstacles: [cat]\n' + STEPS, 'moving_obstacles[0]: must be a mapping'),
     ('  moving_obstacles: [{name: cat, radius_m: -1, speed_m_s: 1, path: [[1, 1], [2, 2]]}]\n'
-     + STEPS, "moving_obstacles[0]: 'cat': radius_m must be positive"),
+     + STEPS, "moving_obstacles[0]: 'cat': radius_m must be > 0, not -1"),
+    ('  moving_obstacles: [{name: cat, radius_m: 0.2, speed_m_s: 1, path: [[1, 1], [2, 2]], '
+     'colour: red}]\n' + STEPS, 'moving_obstacles[0].colour: unknown key (allowed: name, '
+     'radius_m, speed_m_s, path, loop)'),
+    ('  moving_obstacles: [{radius_m: 0.2, speed_m_s: 1, path: [[1, 1], [2, 2]]}]\n' + STEPS,
+     "moving_obstacles[0]: missing key 'name'"),
     ('  moving_obstacles: [{name: cat, radius_m: 0.2, speed_m_s: 1, path: [[3, 6], [3, 3]]}]\n'
      + STEPS, "moving_obstacles[0]: 'cat': path runs into 'hallway_north_w'"),
     ('  moving_obstacles: [{name: cat, radius_m: 0.2, speed_m_s: 1, path: [[2, 3], [4, 1]]}]\n'

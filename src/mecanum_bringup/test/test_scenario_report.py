@@ -6,8 +6,9 @@ import textwrap
 import xml.etree.ElementTree as ElementTree
 
 from matplotlib.image import imread
-from mecanum_bringup.scenario import (
-    CriterionResult, judge, load_scenario, RunRecord, StepResult, Verdict)
+from mecanum_bringup.scenario_judge import judge
+from mecanum_bringup.scenario_loader import load_scenario
+from mecanum_bringup.scenario_model import CriterionResult, RunRecord, StepResult, Verdict
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
 from mecanum_map_server.map_io import OccupancyMap

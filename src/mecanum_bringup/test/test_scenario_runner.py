@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from mecanum_bringup.scenario import load_scenario
+from mecanum_bringup.scenario_loader import load_scenario
 from mecanum_bringup.scenario_runner import RunOptions, write_run_files
 from mecanum_bringup.system_description import load_system
 from mecanum_safety.zone import load_zone_file

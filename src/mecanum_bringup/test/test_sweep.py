@@ -4,7 +4,7 @@ from pathlib import Path
 import sqlite3
 import textwrap
 
-from mecanum_bringup.scenario import load_scenario
+from mecanum_bringup.scenario_loader import load_scenario
 from mecanum_bringup.sweep import (
     load_sweep, SweepError, variant_count, variant_documents, variants)
 from mecanum_bringup.sweep_runner import prepare, ProgressBar
@@ -162,6 +162,14 @@ BAD = [
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n'
      '    floor_friction_coefficient: [0.5, -1]\n',
      'sweep.yaml:5: sweep.axes.floor_friction_coefficient[1]: must be >= 0, not -1'),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n'
+     '    sensor_noise_scale: [0.5, high]\n',
+     "sweep.yaml:5: sweep.axes.sensor_noise_scale[1]: must be a number, not 'high'"),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: sometimes\n'
+     '  axes: {seed: [1]}\n',
+     "sweep.yaml:4: sweep.mode: must be one of grid, random, not 'sometimes'"),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes: {seed: [1]}\nextra: 1\n',
+     'sweep.yaml:5: extra: unknown top-level key (only "sweep:" is allowed)'),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n    person: [{speed_m_s: 0}]\n',
      'sweep.yaml:5: sweep.axes.person[0].speed_m_s: must be > 0'),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n    person: [{colour: red}]\n',

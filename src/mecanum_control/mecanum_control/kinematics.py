@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import math
 from typing import Sequence, Tuple
 
+from mecanum_control.angles import wrap_angle
+
 Twist2D = Tuple[float, float, float]
 WheelSpeeds = Tuple[float, float, float, float]
 
@@ -103,18 +105,3 @@ def integrate_pose(x: float, y: float, yaw: float, vx: float, vy: float, wz: flo
     return (x + cos_yaw * dx_body - sin_yaw * dy_body,
             y + sin_yaw * dx_body + cos_yaw * dy_body,
             wrap_angle(yaw + dtheta))
-
-
-def wrap_angle(angle: float) -> float:
-    """Wrap an angle in radians to [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def quaternion_from_yaw(yaw: float) -> Tuple[float, float, float, float]:
-    """Return the (x, y, z, w) quaternion of a rotation by yaw radians about z."""
-    return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-
-
-def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
-    """Return the yaw (rotation about z, radians) of a quaternion."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

@@ -10,7 +10,7 @@ from typing import Optional, Sequence
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped
-from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.angles import quaternion_from_yaw
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32MultiArray, MultiArrayDimension
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import math
 from typing import Deque, Optional, Sequence, Tuple
 
-from mecanum_control.kinematics import (
-    forward_kinematics, integrate_pose, MecanumGeometry, wrap_angle)
+from mecanum_control.angles import wrap_angle
+from mecanum_control.kinematics import forward_kinematics, integrate_pose, MecanumGeometry
 
 U32 = 1 << 32
 #: A sequence or clock jump further back than this is a board reset, not a stale sample.

@@ -4,8 +4,7 @@ import math
 
 from hypothesis import given, strategies as st
 from mecanum_control.kinematics import (
-    desaturate, forward_kinematics, integrate_pose, inverse_kinematics, MecanumGeometry,
-    quaternion_from_yaw, wrap_angle, yaw_from_quaternion)
+    desaturate, forward_kinematics, integrate_pose, inverse_kinematics, MecanumGeometry)
 import pytest
 
 # r = 0.05 m, lx = 0.10 m, ly = 0.15 m: lx + ly = 0.25 m, so 1 rad/s of yaw is 5 rad/s
@@ -115,13 +114,6 @@ def test_integrate_tiny_rotation_is_continuous():
     straight = integrate_pose(0.0, 0.0, 0.3, 1.0, 0.2, 0.0, 0.1)
     almost = integrate_pose(0.0, 0.0, 0.3, 1.0, 0.2, 1e-9, 0.1)
     assert almost == pytest.approx(straight, abs=1e-9)
-
-
-def test_angles_and_quaternions():
-    assert wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
-    assert wrap_angle(-math.pi) == pytest.approx(-math.pi)
-    for yaw in (-3.0, -1.0, 0.0, 0.5, 3.0):
-        assert yaw_from_quaternion(*quaternion_from_yaw(yaw)) == pytest.approx(yaw)
 
 
 @pytest.mark.parametrize('field', ['wheel_radius_m', 'half_wheelbase_m', 'half_track_m'])

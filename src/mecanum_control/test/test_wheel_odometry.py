@@ -2,6 +2,7 @@
 
 import math
 
+from mecanum_control.angles import angle_difference
 from mecanum_control.kinematics import inverse_kinematics, MecanumGeometry
 from mecanum_control.wheel_odometry import (
     EncoderSample, SampleResult, WheelOdometry, wrapped_delta)
@@ -248,7 +249,7 @@ def circle_samples(rad_per_count, vx, wz, count):
 
 def angle_error(a, b):
     """Return the absolute difference of two angles, modulo 2 pi."""
-    return abs((a - b + math.pi) % (2 * math.pi) - math.pi)
+    return abs(angle_difference(a, b))
 
 
 # Bounds on the error from count quantisation on the circle below (R = 0.3 / (pi/3) m,

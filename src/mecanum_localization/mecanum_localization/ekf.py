@@ -3,7 +3,7 @@ Planar extended Kalman filter of a mecanum robot (pure: numpy, no ROS).
 
 State (8, SI units, REP-103/105), as robot_localization's state restricted to the plane:
 ``[x, y, yaw, vx, vy, vyaw, ax, ay]``: the pose of base_link in the world frame (odom or
-map; x, y in m, yaw in rad wrapped to (-pi, pi]) and the body velocities (m/s, rad/s)
+map; x, y in m, yaw in rad wrapped to [-pi, pi)) and the body velocities (m/s, rad/s)
 and accelerations (m/s^2) in base_link.
 
 Motion model: omnidirectional constant acceleration (robot_localization's, in 2D)::
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import math
 from typing import Deque, List, Optional, Sequence
 
-from mecanum_localization.transforms import wrap_angle
+from mecanum_control.angles import wrap_angle
 from numba import njit
 import numpy as np
 
@@ -44,18 +44,10 @@ MIN_VARIANCE = 1e-9
 
 #: Kernel status codes of :func:`_correct_kernel`.
 _FUSED, _SINGULAR, _GATED = 0, 1, 2
-_TWO_PI = 2.0 * math.pi
 
-
-@njit(cache=True)
-def _wrap(angle: float) -> float:
-    """Wrap an angle in radians to (-pi, pi] (as transforms.wrap_angle, compiled)."""
-    wrapped = np.fmod(angle, _TWO_PI)
-    if wrapped > math.pi:
-        wrapped -= _TWO_PI
-    elif wrapped <= -math.pi:
-        wrapped += _TWO_PI
-    return wrapped
+#: mecanum_control.angles.wrap_angle compiled for the kernels: [-pi, pi), one definition.
+#: (numba's cache of a kernel calling it is not invalidated by an edit of angles.py.)
+_wrap = njit(cache=True)(wrap_angle)
 
 
 @njit(cache=True)

@@ -34,6 +34,7 @@ from typing import List, Optional, Sequence, Set, Tuple
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import (
     AccelWithCovarianceStamped, PoseWithCovarianceStamped, TwistWithCovarianceStamped)
+from mecanum_control.angles import yaw_from_quaternion
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.messages import odometry_transform, planar_odometry
 from mecanum_control.node_main import run_node
@@ -43,7 +44,7 @@ from mecanum_localization.ekf import (
 from mecanum_localization.ekf_config import EkfConfig, parse_ekf_config, SensorConfig
 from mecanum_localization.sensor_fusion import Conversion, planar_covariance_6, SensorFrontEnd
 from mecanum_localization.transforms import (
-    IDENTITY, PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
+    IDENTITY, PlanarTransform, TransformBuffer, TransformError)
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
@@ -163,7 +164,7 @@ class EkfNode(Node):
     def _on_tf_static(self, msg: TFMessage) -> None:
         for transform in msg.transforms:
             translation, rotation = transform.transform.translation, transform.transform.rotation
-            planar = PlanarTransform(translation.x, translation.y, quaternion_yaw(
+            planar = PlanarTransform(translation.x, translation.y, yaw_from_quaternion(
                 rotation.x, rotation.y, rotation.z, rotation.w))
             if not all(math.isfinite(v) for v in (planar.x, planar.y, planar.yaw)):
                 self._warn(f'tf {transform.child_frame_id}', '/tf_static transform '
@@ -224,7 +225,7 @@ class EkfNode(Node):
             return None
         q = pose.orientation
         return front.pose(time_s, pose.position.x, pose.position.y,
-                          quaternion_yaw(q.x, q.y, q.z, q.w), covariance, frame, child)
+                          yaw_from_quaternion(q.x, q.y, q.z, q.w), covariance, frame, child)
 
     def _twist_conversion(self, sensor: SensorConfig, time_s: float, frame_id: str, twist,
                           covariance) -> Optional[Conversion]:
@@ -286,7 +287,7 @@ class EkfNode(Node):
             return
         q = msg.pose.pose.orientation
         pose = frame.compose(PlanarTransform(msg.pose.pose.position.x, msg.pose.pose.position.y,
-                                             quaternion_yaw(q.x, q.y, q.z, q.w)))
+                                             yaw_from_quaternion(q.x, q.y, q.z, q.w)))
         rotation = np.eye(3)
         rotation[:2, :2] = frame.rotation()
         covariance = rotation @ planar_covariance_6(msg.pose.covariance) @ rotation.T

@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 import math
 from typing import List, Optional, Sequence, Tuple
 
-from mecanum_localization.ekf import (
-    AX, AY, Measurement, VX, VY, VYAW, wrap_angle, X, Y, YAW)
+from mecanum_control.angles import wrap_angle, yaw_from_quaternion
+from mecanum_localization.ekf import AX, AY, Measurement, VX, VY, VYAW, X, Y, YAW
 from mecanum_localization.ekf_config import SensorConfig
-from mecanum_localization.transforms import IDENTITY, PlanarTransform, quaternion_yaw
+from mecanum_localization.transforms import IDENTITY, PlanarTransform
 import numpy as np
 
 #: Indices of x, y and yaw (or of vx, vy and vyaw) in a ROS 6x6 pose (twist) covariance.
@@ -200,7 +200,7 @@ class SensorFrontEnd:
             covariance = np.zeros((3, 3))
             covariance[2, 2] = orientation_covariance[2, 2]
             # The IMU frame's yaw in the world, minus its mount yaw: base_link's yaw.
-            yaw = wrap_angle(quaternion_yaw(*orientation) - mount.yaw)
+            yaw = wrap_angle(yaw_from_quaternion(*orientation) - mount.yaw)
             measurements += self._pose_measurements(
                 time_s, PlanarTransform(0.0, 0.0, yaw), covariance, ('yaw',)).measurements
         if use_gyro:

@@ -12,7 +12,8 @@ local (latched), both reliable with depth 100.
 import math
 from typing import Callable, Optional
 
-from mecanum_localization.transforms import PlanarTransform, quaternion_yaw, TransformBuffer
+from mecanum_control.angles import yaw_from_quaternion
+from mecanum_localization.transforms import PlanarTransform, TransformBuffer
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from tf2_msgs.msg import TFMessage
@@ -44,7 +45,7 @@ class TransformListener:
         """Store each transform of a TFMessage; warn (throttled) about unusable ones."""
         for transform in msg.transforms:
             t, q = transform.transform.translation, transform.transform.rotation
-            planar = PlanarTransform(t.x, t.y, quaternion_yaw(q.x, q.y, q.z, q.w))
+            planar = PlanarTransform(t.x, t.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
             time_s = stamp_to_s(transform.header.stamp)
             try:
                 self.buffer.set_transform(transform.header.frame_id, transform.child_frame_id,

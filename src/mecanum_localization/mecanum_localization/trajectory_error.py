@@ -10,16 +10,11 @@ samples outside the truth's time span are left out.
 """
 
 from dataclasses import astuple, dataclass
-import math
 from typing import Sequence
 
+from mecanum_control.angles import wrap_angles
 from mecanum_localization.transforms import PlanarTransform
 import numpy as np
-
-
-def wrap_angles(angle: np.ndarray) -> np.ndarray:
-    """Wrap angles (rad) to [-pi, pi)."""
-    return (np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def interpolate_poses(times_s: Sequence[float], poses: np.ndarray,

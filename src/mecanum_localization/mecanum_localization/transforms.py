@@ -17,18 +17,8 @@ from dataclasses import dataclass
 import math
 from typing import Dict, List, Optional, Tuple
 
+from mecanum_control.angles import wrap_angle
 import numpy as np
-
-
-def wrap_angle(angle: float) -> float:
-    """Wrap an angle in radians to (-pi, pi]."""
-    wrapped = math.remainder(angle, 2.0 * math.pi)
-    return math.pi if wrapped <= -math.pi else wrapped
-
-
-def quaternion_yaw(qx: float, qy: float, qz: float, qw: float) -> float:
-    """Return the yaw (Z of a ZYX rotation) of a quaternion."""
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
 
 
 @dataclass(frozen=True)

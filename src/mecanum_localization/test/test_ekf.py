@@ -2,9 +2,10 @@
 
 import math
 
+from mecanum_control.angles import wrap_angle
 from mecanum_localization.ekf import (
     _correct_kernel, _predict_kernel, _wrap, AX, AY, Measurement, PlanarEkf, predict_state,
-    STATE_SIZE, transition_jacobian, VX, VY, VYAW, wrap_angle, X, Y, YAW)
+    STATE_SIZE, transition_jacobian, VX, VY, VYAW, X, Y, YAW)
 from mecanum_localization.ekf_config import parse_ekf_config
 import numpy as np
 import pytest
@@ -44,10 +45,11 @@ def assert_positive_definite(matrix):
 
 # -- angles and the motion model ----------------------------------------------------------
 
-def test_wrap_angle_is_in_minus_pi_exclusive_to_pi_inclusive():
-    assert wrap_angle(math.pi) == math.pi
-    assert wrap_angle(-math.pi) == math.pi
-    assert wrap_angle(3 * math.pi) == math.pi
+def test_wrap_angle_is_in_minus_pi_inclusive_to_pi_exclusive():
+    # mecanum_control.angles' convention, shared by every package: +pi is -pi.
+    assert wrap_angle(math.pi) == -math.pi
+    assert wrap_angle(-math.pi) == -math.pi
+    assert wrap_angle(3 * math.pi) == -math.pi
     assert wrap_angle(1.5 * math.pi) == pytest.approx(-0.5 * math.pi)
     assert wrap_angle(-0.25) == -0.25
 
@@ -58,8 +60,8 @@ def test_compiled_wrap_agrees_with_wrap_angle():
     angles += list(np.linspace(-20.0, 20.0, 401))
     for angle in angles:
         wrapped = _wrap(angle)
-        assert -math.pi < wrapped <= math.pi
-        assert wrapped == pytest.approx(wrap_angle(angle), abs=1e-12)
+        assert -math.pi <= wrapped < math.pi
+        assert wrapped == wrap_angle(angle)
 
 
 def test_prediction_at_constant_velocity_heading_x():
@@ -143,12 +145,13 @@ def test_update_by_hand():
 
 def test_yaw_innovation_is_wrapped():
     # Estimate 3.0 rad, measurement -3.0 rad: the short way is +(2 pi - 6) rad, and with
-    # equal variances the estimate moves half of it: 3 + (pi - 3) = pi.
+    # equal variances the estimate moves half of it: 3 + (pi - 3) = pi, wrapped to -pi
+    # (or a rounding error either side of the same heading).
     ekf = started_filter()
     ekf.set_pose(0.0, 0.0, 0.0, 3.0, np.diag([1e-9, 1e-9, 1.0]))
     ekf.process(Measurement(0.0, [YAW], [-3.0], [[1.0]]))
-    assert ekf.state[YAW] == pytest.approx(math.pi, abs=1e-12)
-    assert -math.pi < ekf.state[YAW] <= math.pi
+    assert abs(wrap_angle(ekf.state[YAW] - math.pi)) < 1e-12
+    assert -math.pi <= ekf.state[YAW] < math.pi
 
 
 def reference_update(state_vector, covariance, indices, values, noise, specific_force):
@@ -314,7 +317,7 @@ def test_covariance_stays_symmetric_positive_definite_over_a_long_random_run():
         statuses.add(ekf.process(Measurement(time_s, indices, values, covariance,
                                              threshold)).status)
         assert_positive_definite(ekf.covariance)
-        assert np.all(np.isfinite(ekf.state)) and -math.pi < ekf.state[YAW] <= math.pi
+        assert np.all(np.isfinite(ekf.state)) and -math.pi <= ekf.state[YAW] < math.pi
     assert {'fused', 'gated'} <= statuses
 
 

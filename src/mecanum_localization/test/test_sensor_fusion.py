@@ -2,10 +2,11 @@
 
 import math
 
+from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_localization.ekf import AX, AY, VX, VY, VYAW, X, Y, YAW
 from mecanum_localization.ekf_config import RL_VARIABLES, SensorConfig
 from mecanum_localization.sensor_fusion import gravity_in_frame, SensorFrontEnd
-from mecanum_localization.transforms import PlanarTransform, quaternion_yaw
+from mecanum_localization.transforms import PlanarTransform
 import numpy as np
 import pytest
 
@@ -30,11 +31,6 @@ def covariance_3(*diagonal):
     return np.diag(np.array(diagonal, dtype=float)).reshape(-1).tolist()
 
 
-def yaw_quaternion(yaw):
-    """Return the (x, y, z, w) quaternion of a rotation by yaw about z."""
-    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-
-
 def imu_sample(front, orientation=None, orientation_covariance=NO_DATA, gyro_z=0.0,
                accel=(0.0, 0.0, G), mount=PlanarTransform(), time_s=1.0):
     """Convert an IMU sample with the gyro and accel covariances of hardware_interface."""
@@ -45,14 +41,14 @@ def imu_sample(front, orientation=None, orientation_covariance=NO_DATA, gyro_z=0
 
 # -- IMU orientation ---------------------------------------------------------------------
 
-def test_quaternion_yaw_and_gravity_of_a_tilted_imu():
-    assert quaternion_yaw(*yaw_quaternion(2.5)) == pytest.approx(2.5)
+def test_yaw_from_quaternion_and_gravity_of_a_tilted_imu():
+    assert yaw_from_quaternion(*quaternion_from_yaw(2.5)) == pytest.approx(2.5)
     # Pitched by 0.3 rad about y: R = [[c, 0, s], [0, 1, 0], [-s, 0, c]]; gravity reads
     # as the third row times g: (-g sin 0.3, 0, g cos 0.3).
     pitch = (0.0, math.sin(0.15), 0.0, math.cos(0.15))
     assert gravity_in_frame(*pitch, G) == pytest.approx(
         (-G * math.sin(0.3), 0.0, G * math.cos(0.3)))
-    assert gravity_in_frame(*yaw_quaternion(1.0), G) == pytest.approx((0.0, 0.0, G))
+    assert gravity_in_frame(*quaternion_from_yaw(1.0), G) == pytest.approx((0.0, 0.0, G))
 
 
 # -- IMU ------------------------------------------------------------------------------------
@@ -79,7 +75,7 @@ def test_imu_without_orientation_gives_no_yaw():
 
 def test_imu_orientation_minus_mount_yaw_is_the_robot_yaw():
     front = front_end('imu', 'yaw')
-    conversion = imu_sample(front, yaw_quaternion(0.5), covariance_3(0.01, 0.01, 0.02),
+    conversion = imu_sample(front, quaternion_from_yaw(0.5), covariance_3(0.01, 0.01, 0.02),
                             mount=PlanarTransform(0.0, 0.0, 0.2))
     (yaw,) = conversion.measurements
     assert yaw.indices == (YAW,) and yaw.values == pytest.approx([0.3])
@@ -198,9 +194,9 @@ def test_differential_poses_become_body_velocities():
 
 def test_differential_imu_yaw_becomes_yaw_rate():
     front = front_end('imu', 'yaw', differential=True)
-    assert imu_sample(front, yaw_quaternion(3.0), covariance_3(0, 0, 0.01),
+    assert imu_sample(front, quaternion_from_yaw(3.0), covariance_3(0, 0, 0.01),
                       time_s=0.0).measurements == []
-    (rate,) = imu_sample(front, yaw_quaternion(-3.0), covariance_3(0, 0, 0.01),
+    (rate,) = imu_sample(front, quaternion_from_yaw(-3.0), covariance_3(0, 0, 0.01),
                          time_s=0.5).measurements
     # From 3 rad to -3 rad the short way: +(2 pi - 6) rad in 0.5 s.
     assert rate.indices == (VYAW,)

@@ -3,7 +3,7 @@
 import math
 
 from mecanum_localization.transforms import (
-    IDENTITY, PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
+    IDENTITY, PlanarTransform, TransformBuffer, TransformError)
 import pytest
 
 
@@ -120,8 +120,3 @@ def test_bad_transforms_are_refused():
         buffer.set_transform('odom', 'base_link', PlanarTransform(math.nan, 0.0, 0.0))
     with pytest.raises(ValueError, match='cache_time_s'):
         TransformBuffer(cache_time_s=0.0)
-
-
-def test_quaternion_yaw():
-    half = 1.2
-    assert quaternion_yaw(0.0, 0.0, math.sin(half), math.cos(half)) == pytest.approx(2.4)

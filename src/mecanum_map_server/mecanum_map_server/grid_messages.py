@@ -5,9 +5,8 @@ Both keep ROS's cell order (row 0 is the lowest y), so the data is copied as is.
 origin's yaw becomes a rotation about z of the info.origin pose.
 """
 
-import math
-
 from builtin_interfaces.msg import Time
+from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_map_server.map_io import OccupancyMap
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
@@ -25,8 +24,8 @@ def occupancy_grid(occupancy_map: OccupancyMap, frame_id: str, stamp: Time) -> O
     x, y, yaw = occupancy_map.origin
     msg.info.origin.position.x = float(x)
     msg.info.origin.position.y = float(y)
-    msg.info.origin.orientation.z = math.sin(yaw / 2.0)
-    msg.info.origin.orientation.w = math.cos(yaw / 2.0)
+    q = msg.info.origin.orientation
+    q.x, q.y, q.z, q.w = quaternion_from_yaw(yaw)
     msg.data = occupancy_map.data.reshape(-1).astype(np.int8).tolist()
     return msg
 
@@ -38,7 +37,7 @@ def occupancy_map(msg: OccupancyGrid) -> OccupancyMap:
         raise ValueError(f'OccupancyGrid of {width} x {height} cells has {len(msg.data)} '
                          'values')
     q = msg.info.origin.orientation
-    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
     data = np.asarray(msg.data, dtype=np.int8).reshape(height, width)
     return OccupancyMap(float(msg.info.resolution),
                         (msg.info.origin.position.x, msg.info.origin.position.y, yaw), data)

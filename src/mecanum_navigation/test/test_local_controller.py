@@ -4,7 +4,8 @@ from dataclasses import dataclass
 import math
 
 from hypothesis import given, settings, strategies as st
-from mecanum_control.kinematics import integrate_pose, wrap_angle
+from mecanum_control.angles import wrap_angle
+from mecanum_control.kinematics import integrate_pose
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_navigation.controller.local_controller import (
     ControllerParams, LocalController, ProgressChecker, ramp_step, simulate_trajectories,

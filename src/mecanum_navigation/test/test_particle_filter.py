@@ -9,13 +9,13 @@ mecanum_map_server's maps/, and the parameters of config/amcl.yaml.
 import math
 from pathlib import Path
 
+from mecanum_control.angles import wrap_angles
 from mecanum_control.kinematics import integrate_pose
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_map_server.map_io import find_map_file, load_map, OccupancyMap
 from mecanum_navigation.amcl.particle_filter import (
     AmclConfig, cluster_labels, DEFAULT_INITIAL_COVARIANCE, kld_sample_limit,
-    LikelihoodField, low_variance_resample, ParticleFilter, ScanData,
-    squared_distance_transform, tempering_exponent, wrap_angles)
+    LikelihoodField, low_variance_resample, ParticleFilter, ScanData, tempering_exponent)
 import numpy as np
 import pytest
 from robot_simulation.sensors import Lidar, LidarConfig
@@ -153,16 +153,11 @@ def test_distance_field_by_hand_and_unknown_and_off_map_cells():
     assert len(field.free_cells) == 23 and field.obstacle_count == 1
 
 
-def test_distance_transform_matches_brute_force():
-    """The exact EDT equals the brute-force minimum over all obstacle cells."""
-    rng = np.random.default_rng(3)
-    obstacles = rng.random((23, 31)) < 0.04
-    rows, cols = np.indices(obstacles.shape)
-    points = np.argwhere(obstacles)
-    brute = np.min((rows[..., None] - points[:, 0]) ** 2 + (cols[..., None] - points[:, 1]) ** 2,
-                   axis=-1)
-    assert np.array_equal(squared_distance_transform(obstacles), brute)
-    assert (squared_distance_transform(np.zeros((3, 4), dtype=bool)) >= 1e29).all()
+def test_distance_field_of_a_map_without_obstacles_is_the_cap():
+    """No obstacle cell: the transform's NO_OBSTACLE, capped, is max_dist_m everywhere."""
+    field = LikelihoodField(OccupancyMap(0.1, (0.0, 0.0, 0.0), np.zeros((3, 4), np.int8)),
+                            max_dist_m=2.0)
+    assert (field.distances_m == 2.0).all() and field.obstacle_count == 0
 
 
 def test_rotated_map_origin():

@@ -2,7 +2,8 @@
 
 import math
 
-from mecanum_navigation.slam.pose_graph import compose, inverse, PoseGraph, relative, wrap_angle
+from mecanum_control.angles import wrap_angle
+from mecanum_navigation.slam.pose_graph import compose, inverse, PoseGraph, relative
 import numpy as np
 import pytest
 
@@ -68,13 +69,6 @@ def test_compose_inverse_relative_by_hand():
     # (2, 1) seen from (1, 1) facing +y is 1 m to its right.
     assert relative((1.0, 1.0, math.pi / 2), (2.0, 1.0, math.pi / 2)) == pytest.approx(
         (0.0, -1.0, 0.0))
-
-
-def test_wrap_angle_range():
-    assert wrap_angle(math.pi) == pytest.approx(-math.pi)
-    assert wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
-    assert wrap_angle(-0.25) == pytest.approx(-0.25)
-    assert wrap_angle(4 * math.pi + 0.5) == pytest.approx(0.5)
 
 
 # --- edge errors ---------------------------------------------------------------------

@@ -4,7 +4,7 @@ import math
 
 from mecanum_map_server.map_io import OccupancyMap
 from mecanum_navigation.slam.scan_matching import (
-    LikelihoodField, match_scan, ScanMatcherConfig, squared_distance_transform, voxel_filter)
+    LikelihoodField, match_scan, ScanMatcherConfig, voxel_filter)
 import numpy as np
 import pytest
 
@@ -56,19 +56,11 @@ def room_fields():
 
 # --- distance fields ------------------------------------------------------------------
 
-def test_distance_transform_matches_brute_force():
-    rng = np.random.default_rng(1)
-    for shape, density in (((23, 31), 0.05), ((1, 17), 0.2), ((40, 3), 0.1)):
-        occupied = rng.random(shape) < density
-        occupied[0, 0] = True
-        rows, cols = np.indices(shape)
-        r, c = np.nonzero(occupied)
-        expected = ((rows[..., None] - r) ** 2 + (cols[..., None] - c) ** 2).min(axis=-1)
-        np.testing.assert_array_equal(squared_distance_transform(occupied), expected)
-
-
-def test_distance_transform_of_an_empty_grid_is_far():
-    assert np.all(squared_distance_transform(np.zeros((4, 5), bool)) == 1e18)
+def test_field_of_an_empty_grid_is_far():
+    # No occupied cell: squared distances 1e18 cells^2 (as before the shared transform).
+    field = LikelihoodField(np.zeros((4, 5), bool), 0.1, (0.0, 0.0), sigma_m=0.1)
+    assert np.all(field.distance_m == np.float32(1e9 * 0.1))
+    assert np.all(field.field == 0.0)
 
 
 def test_field_of_one_occupied_cell_by_hand():

@@ -3,8 +3,9 @@
 import math
 import time
 
+from mecanum_control.angles import wrap_angle
 from mecanum_map_server.map_io import load_map, OccupancyMap, save_map, world_to_cell
-from mecanum_navigation.slam.pose_graph import compose, relative, wrap_angle
+from mecanum_navigation.slam.pose_graph import compose, relative
 from mecanum_navigation.slam.slam import occupied_overlap, OnlineSlam, SlamConfig, surface_normals
 import numpy as np
 import pytest

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import math
 from typing import List, Optional, Sequence, Tuple
 
-from mecanum_safety.zone import points_in_polygon
+from mecanum_safety.polygon import points_in_polygon
 import numpy as np
 
 Twist2D = Tuple[float, float, float]

@@ -3,9 +3,10 @@ The authorised zone (geofence): where the robot may be, declared once (pure, no 
 
 A zone is one inclusion polygon and any number of exclusion polygons, in the map frame
 (REP-105; metres, x east, y north). Polygons may be concave; they must be simple (no
-self-crossing), and exclusions lie inside the inclusion polygon. The robot's footprint
-(a circle of footprint_radius_m around base_link) is allowed where it is inside the
-inclusion polygon and outside every exclusion.
+self-crossing, no edge folding back onto the previous one: the rules of
+:func:`mecanum_safety.polygon.polygon_problem`), and exclusions lie inside the inclusion
+polygon. The robot's footprint (a circle of footprint_radius_m around base_link) is
+allowed where it is inside the inclusion polygon and outside every exclusion.
 
 The same definition serves everyone: the navigator writes everything outside it as
 keepout in its global costmap, the zone guard keeps the commanded motion inside it,
@@ -31,6 +32,9 @@ import math
 from pathlib import Path
 from typing import Any, List, Optional, Sequence, Tuple, Union
 
+from mecanum_safety.polygon import (
+    point_in_polygon, points_in_polygon, polygon_edges, polygon_problem, segments_touch,
+    signed_area)
 import numpy as np
 import yaml
 
@@ -76,9 +80,7 @@ class Zone:
 
     def edges(self) -> np.ndarray:
         """Return every border edge as a (K, 4) array of x1, y1, x2, y2 rows (m)."""
-        rows = [np.hstack((polygon, np.roll(polygon, -1, axis=0)))
-                for polygon in self.polygons()]
-        return np.vstack(rows)
+        return np.vstack([polygon_edges(polygon) for polygon in self.polygons()])
 
     def contains(self, xs, ys) -> np.ndarray:
         """Return a bool array: which points (map frame, m) are in the allowed region."""
@@ -91,9 +93,9 @@ class Zone:
 
     def contains_point(self, x: float, y: float) -> bool:
         """Return whether one point (m) is in the allowed region (no numpy: per-step use)."""
-        if not _point_in_polygon(x, y, self.include):
+        if not point_in_polygon(x, y, self.include):
             return False
-        return not any(_point_in_polygon(x, y, polygon) for polygon in self.exclude)
+        return not any(point_in_polygon(x, y, polygon) for polygon in self.exclude)
 
     def clearance(self, xs, ys) -> np.ndarray:
         """
@@ -179,29 +181,6 @@ def zone_file_text(zone: Optional[Zone]) -> str:
                           default_flow_style=None)
 
 
-def points_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Return a bool array: which points (xs, ys) are inside polygon (even-odd rule)."""
-    inside = np.zeros(np.shape(xs), dtype=bool)
-    x2, y2 = polygon[-1]
-    for x1, y1 in polygon:
-        if y1 != y2:
-            crosses = (y1 > ys) != (y2 > ys)
-            x_cross = x1 + (ys - y1) * (x2 - x1) / (y2 - y1)
-            inside ^= crosses & (xs < x_cross)
-        x2, y2 = x1, y1
-    return inside
-
-
-def _point_in_polygon(x: float, y: float, polygon: np.ndarray) -> bool:
-    inside = False
-    x2, y2 = polygon[-1]
-    for x1, y1 in polygon:
-        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
-            inside = not inside
-        x2, y2 = x1, y1
-    return inside
-
-
 def points_segments_distance(xs: np.ndarray, ys: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """Return, for each point, its distance (m) to the nearest x1, y1, x2, y2 segment."""
     px = np.asarray(xs, dtype=np.float64)[..., None]
@@ -211,33 +190,6 @@ def points_segments_distance(xs: np.ndarray, ys: np.ndarray, segments: np.ndarra
     length2 = np.maximum(dx * dx + dy * dy, _EPS)
     t = np.clip(((px - x1) * dx + (py - y1) * dy) / length2, 0.0, 1.0)
     return np.min(np.hypot(x1 + t * dx - px, y1 + t * dy - py), axis=-1)
-
-
-def polygon_problem(points: Sequence[Point]) -> Optional[str]:
-    """Return why points do not form a simple polygon (>= 3 points, no crossing), or None."""
-    count = len(points)
-    if count < 3:
-        return f'needs at least 3 points, got {count}'
-    for index in range(count):
-        if math.dist(points[index], points[(index + 1) % count]) <= _EPS:
-            return f'has repeated consecutive points at index {index}'
-    for i in range(count):
-        for j in range(i + 1, count):
-            if j == i + 1 or (i == 0 and j == count - 1):
-                continue   # neighbours share a vertex
-            if _segments_touch(points[i], points[(i + 1) % count],
-                               points[j], points[(j + 1) % count]):
-                return f'is self-intersecting (edges {i} and {j} cross)'
-    if abs(signed_area(points)) <= _EPS:
-        return 'has zero area'
-    return None
-
-
-def signed_area(points: Sequence[Point]) -> float:
-    """Return the polygon's signed area (m^2): positive when counter-clockwise."""
-    array = np.asarray(points, dtype=np.float64)
-    x, y = array[:, 0], array[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def _build(include: Any, exclude: Sequence[Any], frame_id: Any, where: str,
@@ -256,8 +208,8 @@ def _build(include: Any, exclude: Sequence[Any], frame_id: Any, where: str,
         # A concave inclusion can hold every vertex while an edge crosses its notch.
         for i in range(len(vertices)):
             for j in range(len(inclusion)):
-                if _segments_touch(vertices[i], vertices[(i + 1) % len(vertices)],
-                                   inclusion[j], inclusion[(j + 1) % len(inclusion)]):
+                if segments_touch(vertices[i], vertices[(i + 1) % len(vertices)],
+                                  inclusion[j], inclusion[(j + 1) % len(inclusion)]):
                     raise ZoneError(f'{name}: edge {i} crosses edge {j} of the inclusion '
                                     'polygon (exclusions must lie inside it)')
         exclusions.append(vertices)
@@ -291,26 +243,3 @@ def _is_number(value: Any) -> bool:
 
 def _as_lists(polygon: np.ndarray) -> List[List[float]]:
     return [[float(x), float(y)] for x, y in polygon]
-
-
-def _cross(o: Point, a: Point, b: Point) -> float:
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-
-def _on_segment(p: Point, q: Point, r: Point) -> bool:
-    """Whether r (collinear with p-q) lies within the segment's bounding box."""
-    return (min(p[0], q[0]) - _EPS <= r[0] <= max(p[0], q[0]) + _EPS
-            and min(p[1], q[1]) - _EPS <= r[1] <= max(p[1], q[1]) + _EPS)
-
-
-def _segments_touch(p1: Point, p2: Point, q1: Point, q2: Point) -> bool:
-    """Whether segments p1-p2 and q1-q2 cross or touch."""
-    d1, d2 = _cross(q1, q2, p1), _cross(q1, q2, p2)
-    d3, d4 = _cross(p1, p2, q1), _cross(p1, p2, q2)
-    if ((d1 > _EPS and d2 < -_EPS) or (d1 < -_EPS and d2 > _EPS)) and \
-            ((d3 > _EPS and d4 < -_EPS) or (d3 < -_EPS and d4 > _EPS)):
-        return True
-    return ((abs(d1) <= _EPS and _on_segment(q1, q2, p1))
-            or (abs(d2) <= _EPS and _on_segment(q1, q2, p2))
-            or (abs(d3) <= _EPS and _on_segment(p1, p2, q1))
-            or (abs(d4) <= _EPS and _on_segment(p1, p2, q2)))

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import math
 from typing import Optional, Sequence, Tuple, Union
 
+from mecanum_control.angles import wrap_angle
 from mecanum_safety.zone import Zone
 import numpy as np
 
@@ -137,7 +138,7 @@ def integrate_twist(pose: Pose, vx: float, vy: float, wz: float, t: float) -> Po
     guard and :func:`path_stays_inside` predict it.
     """
     xs, ys, yaws = integrate_twists(pose, vx, vy, wz, np.array([float(t)]))
-    yaw = (float(yaws[0]) + math.pi) % (2.0 * math.pi) - math.pi
+    yaw = wrap_angle(float(yaws[0]))
     return float(xs[0]), float(ys[0]), yaw
 
 

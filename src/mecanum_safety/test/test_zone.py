@@ -2,9 +2,9 @@
 
 import math
 
+from mecanum_safety.polygon import polygon_problem, signed_area
 from mecanum_safety.zone import (
-    load_zone_file, make_zone, parse_zone, polygon_problem, signed_area, Zone,
-    zone_file_text, ZoneError)
+    load_zone_file, make_zone, parse_zone, Zone, zone_file_text, ZoneError)
 import numpy as np
 import pytest
 
@@ -103,7 +103,9 @@ def test_the_three_forms_parse_to_the_same_zone_and_round_trip(tmp_path):
      r'^here\.include: the polygon has repeated consecutive points at index 1'),
     ({'include': [[0, 0], [1, 1], [1, 0], [0, 1]]},
      r'^here\.include: the polygon is self-intersecting \(edges 0 and 2 cross\)'),
-    ({'include': [[0, 0], [1, 0], [2, 0]]}, r'^here\.include: the polygon has zero area'),
+    # Three collinear points: the closing edge (2, 0) -> (0, 0) runs back over edge 0.
+    ({'include': [[0, 0], [1, 0], [2, 0]]},
+     r'^here\.include: the polygon is self-intersecting \(edges 0 and 2 overlap\)'),
     ({'include': L_SHAPE, 'exclude': [[[1, 1], [3, 1], [3, 3]]]},
      r'^here\.exclude\[0\]: vertex 2 is outside the inclusion polygon'),
     # Every vertex in the L, but an edge across its notch (through (2.5, 2.5)).
@@ -159,6 +161,23 @@ def test_polygon_problem_and_signed_area_by_hand():
     # A vertex touching a non-adjacent edge is not a simple polygon either.
     assert polygon_problem([(0, 0), (4, 0), (4, 4), (2, 0), (0, 4)]) == \
         'is self-intersecting (edges 0 and 2 cross)'
-    # Nor is an edge running back along the previous one.
+    # Nor is an edge running back along the previous one (reported as the fold-back of
+    # the adjacent edges 0 and 1, found before vertex 2 touching edge 0).
     assert polygon_problem([(0, 0), (2, 0), (1, 0), (1, 1)]) == \
-        'is self-intersecting (edges 0 and 2 cross)'
+        'is self-intersecting (edges 0 and 1 overlap)'
+
+
+def test_a_zone_polygon_that_folds_back_is_refused():
+    # (0, 0) -> (3, 0) -> (1, 0): edge 1 runs from (3, 0) back west over edge 0, a spike of
+    # zero width; then (1, 0) -> (1, 2) -> (0, 2) -> back to (0, 0). Edges 0 and 1 are
+    # collinear (cross product 0) and point opposite ways ((3, 0) . (-2, 0) = -6 < 0), so
+    # they overlap; the check of adjacent edges comes first in the pair order (0, 1).
+    spike = [[0, 0], [3, 0], [1, 0], [1, 2], [0, 2]]
+    with pytest.raises(ZoneError, match=r'^here\.include: the polygon is self-intersecting '
+                                        r'\(edges 0 and 1 overlap\)$'):
+        parse_zone({'include': spike}, 'here')
+    # The same fold-back at the closing vertex: edge 3 (2, 0) -> (0, 0) goes on over
+    # edge 0 (0, 0) -> (1, 0) in the opposite direction (pair (0, 3)).
+    with pytest.raises(ZoneError, match=r'^authorised_zone\.exclude\[0\]: the polygon is '
+                                        r'self-intersecting \(edges 0 and 3 overlap\)$'):
+        make_zone([(-1, -1), (3, -1), (3, 3), (-1, 3)], [[(0, 0), (1, 0), (1, 1), (2, 0)]])

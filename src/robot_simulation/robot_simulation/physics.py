@@ -103,7 +103,8 @@ import math
 import numbers
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from mecanum_control.kinematics import integrate_pose, MecanumGeometry, wrap_angle
+from mecanum_control.angles import wrap_angle
+from mecanum_control.kinematics import integrate_pose, MecanumGeometry
 from mecanum_control.robot_config import RobotConfig
 import numpy as np
 

@@ -56,8 +56,8 @@ import time
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, PoseArray, TransformStamped
+from mecanum_control.angles import quaternion_from_yaw
 from mecanum_control.board_sim import PtyPort, SerialLine
-from mecanum_control.kinematics import quaternion_from_yaw
 from mecanum_control.messages import planar_odometry
 from mecanum_control.node_main import make_executor, run_node, signals_deferred
 from mecanum_control.parameters import declare_number, declare_robot_config, positive

@@ -28,7 +28,8 @@ Geometry:
   half their thickness yourself to close the corners).
 * ``box.size`` is [length along the box's own x axis, width]; yaw_deg turns it CCW.
 * Polygons may be given in either winding; they are stored counter-clockwise and must
-  have at least 3 points and must not intersect themselves.
+  have at least 3 points and must not intersect themselves nor fold back (the rules of
+  mecanum_safety.polygon.polygon_problem).
 * Circles are kept exact (World.circles) and also as 24-gons in World.obstacles
   (kind 'circle'), which World.segments leaves out.
 * Map cells with an OccupancyGrid value >= 65 are solid; unknown (-1) cells are not.
@@ -44,12 +45,14 @@ from dataclasses import dataclass, field
 import math
 from pathlib import Path
 import re
-from typing import Any, Dict, List, NoReturn, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
-from mecanum_control.yaml_files import load_yaml_file
+from mecanum_control.angles import wrap_angle
+from mecanum_control.yaml_files import DocumentChecker, load_yaml_file
 from mecanum_map_server.map_io import (
     find_map_file, load_map, MapError, OccupancyMap, world_to_cell)
-from mecanum_safety.zone import parse_zone, points_in_polygon, Zone, ZoneError
+from mecanum_safety.polygon import points_in_polygon, polygon_edges, polygon_problem, signed_area
+from mecanum_safety.zone import parse_zone, Zone, ZoneError
 import numpy as np
 
 PathLike = Union[str, Path]
@@ -180,7 +183,7 @@ class World:
         names: List[str] = []
         owners: List[np.ndarray] = []
         for index, obstacle in enumerate(solid):
-            edges = _polygon_edges(obstacle.polygon)
+            edges = polygon_edges(obstacle.polygon)
             edge_rows.append(edges)
             names.extend([obstacle.name] * len(edges))
             owners.append(np.full(len(edges), index, dtype=np.intp))
@@ -189,7 +192,7 @@ class World:
         if self.occupancy is not None:
             map_edges = occupied_outline(self.occupancy)
         names.extend([MAP_NAME] * len(map_edges))
-        bounds_edges = _polygon_edges(((xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)))
+        bounds_edges = polygon_edges(((xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)))
         names.extend([BOUNDS_NAME] * 4)
         segments = np.vstack([solid_edges, map_edges, bounds_edges]).astype(np.float64)
         segments.setflags(write=False)
@@ -430,87 +433,22 @@ def point_segment_distances(segments: np.ndarray, x: float, y: float) -> np.ndar
     return np.hypot(x1 + t * dx - x, y1 + t * dy - y)
 
 
-def polygon_problem(points: Sequence[Point]) -> Optional[str]:
-    """Return why points do not form a simple polygon (>= 3 points, no self-crossing), or None."""
-    count = len(points)
-    if count < 3:
-        return f'needs at least 3 points, got {count}'
-    for index in range(count):
-        if math.dist(points[index], points[(index + 1) % count]) <= _EPS:
-            return f'has repeated consecutive points at index {index}'
-    edges = [(points[i], points[(i + 1) % count]) for i in range(count)]
-    for i in range(count):
-        for j in range(i + 1, count):
-            adjacent = j == i + 1 or (i == 0 and j == count - 1)
-            if adjacent:
-                first, second = (edges[i], edges[j]) if j == i + 1 else (edges[j], edges[i])
-                if _folds_back(first, second):
-                    return f'is self-intersecting (edges {i} and {j} overlap)'
-            elif _segments_touch(*edges[i], *edges[j]):
-                return f'is self-intersecting (edges {i} and {j} cross)'
-    if abs(_signed_area(points)) <= _EPS:
-        return 'has zero area'
-    return None
-
-
-class _Parser:
+class _Parser(DocumentChecker):
     """Checks one world document and builds the World; every failure names the entry."""
 
     WORLD_KEYS = ('name', 'bounds_m', 'walls', 'furniture', 'map', 'test_zone',
                   'moving_obstacles', 'robot_start')
 
     def __init__(self, path: Path):
+        super().__init__(WorldError, path.name)
         self.path = path
-        self.label = path.name
-
-    def fail(self, where: str, message: str) -> NoReturn:
-        """Raise WorldError for the entry `where`."""
-        prefix = f'{self.label}: {where}: ' if where else f'{self.label}: '
-        raise WorldError(prefix + message)
-
-    def mapping(self, value: Any, where: str, required: Sequence[str],
-                optional: Sequence[str] = ()) -> Dict[str, Any]:
-        """Check value is a mapping with exactly the allowed keys and the required ones."""
-        allowed = ', '.join(sorted(list(required) + list(optional)))
-        if not isinstance(value, dict):
-            self.fail(where, f'must be a mapping with keys {allowed}, not {value!r}')
-        unknown = [key for key in value if key not in required and key not in optional]
-        if unknown:
-            self.fail(where, f'unknown key {unknown[0]!r} (allowed: {allowed})')
-        for key in required:
-            if key not in value:
-                self.fail(where, f"missing key '{key}' (allowed: {allowed})")
-        return value
 
     def named(self, raw: Any, where: str) -> str:
         """Return where + " 'name'" for an entry with a name key (which must be a string)."""
         if not isinstance(raw, dict) or 'name' not in raw:
             return where
-        name = raw['name']
-        if not isinstance(name, str) or not name.strip():
-            self.fail(where, f'name must be a non-empty string, not {name!r}')
+        name = self.text(raw['name'], where, 'name')
         return f'{where} {name!r}'
-
-    def number(self, value: Any, where: str, what: str) -> float:
-        """Return value as a finite float."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(where, f'{what} must be a number, not {value!r}')
-        if not math.isfinite(value):
-            self.fail(where, f'{what} must be a finite number, not {value}')
-        return float(value)
-
-    def positive(self, value: Any, where: str, what: str) -> float:
-        """Return value as a finite float > 0."""
-        number = self.number(value, where, what)
-        if number <= 0.0:
-            self.fail(where, f'{what} must be positive, not {value}')
-        return number
-
-    def numbers(self, value: Any, where: str, what: str, count: int) -> Tuple[float, ...]:
-        """Return a list of exactly `count` finite numbers as a tuple of floats."""
-        if not isinstance(value, (list, tuple)) or len(value) != count:
-            self.fail(where, f'{what} must be {count} numbers, not {value!r}')
-        return tuple(self.number(v, where, what) for v in value)
 
     def points(self, value: Any, where: str, what: str, minimum: int) -> Polygon:
         """Return a list of at least `minimum` [x, y] points."""
@@ -518,7 +456,7 @@ class _Parser:
             self.fail(where, f'{what} must be a list of [x, y] points, not {value!r}')
         if len(value) < minimum:
             self.fail(where, f'{what} needs at least {minimum} points, got {len(value)}')
-        return tuple(self.numbers(p, where, f'{what} point {i}', 2) for i, p in enumerate(value))
+        return tuple(self.numbers(p, where, 2, f'{what} point {i}') for i, p in enumerate(value))
 
     def polygon(self, value: Any, where: str, what: str) -> Polygon:
         """Return a simple polygon, counter-clockwise."""
@@ -526,17 +464,12 @@ class _Parser:
         problem = polygon_problem(points)
         if problem:
             self.fail(where, f'{what} {problem}')
-        return points if _signed_area(points) > 0.0 else tuple(reversed(points))
+        return points if signed_area(points) > 0.0 else tuple(reversed(points))
 
     def parse(self, doc: Any) -> World:
         """Check the whole document and return the World."""
-        if not isinstance(doc, dict) or 'world' not in doc:
-            self.fail('', 'expected a top-level "world:" mapping')
-        self.mapping(doc, '', ('world',))
-        raw = self.mapping(doc['world'], 'world', (), self.WORLD_KEYS)
-        name = raw.get('name', self.path.stem)
-        if not isinstance(name, str) or not name.strip():
-            self.fail('name', f'must be a non-empty string, not {name!r}')
+        raw = self.mapping(self.document(doc, 'world'), 'world', (), self.WORLD_KEYS)
+        name = self.text(raw.get('name', self.path.stem), 'name')
         occupancy, map_file = self.load_map(raw)
         bounds = self.bounds(raw, occupancy)
         obstacles: List[Obstacle] = []
@@ -563,7 +496,7 @@ class _Parser:
         x = self.number(start['x_m'], 'robot_start', 'x_m')
         y = self.number(start['y_m'], 'robot_start', 'y_m')
         yaw_deg = self.number(start.get('yaw_deg', 0.0), 'robot_start', 'yaw_deg')
-        yaw = math.atan2(math.sin(math.radians(yaw_deg)), math.cos(math.radians(yaw_deg)))
+        yaw = wrap_angle(math.radians(yaw_deg))
         world = World(name=name, bounds=bounds, obstacles=tuple(obstacles),
                       circles=tuple(circles), occupancy=occupancy, test_zone=test_zone,
                       moving_obstacles=tuple(moving), robot_start=(x, y, yaw),
@@ -624,8 +557,8 @@ class _Parser:
             if occupancy is None:
                 self.fail('world', "missing key 'bounds_m' (required when there is no map)")
             return _map_extent(occupancy)
-        xmin, ymin, xmax, ymax = self.numbers(raw['bounds_m'], 'bounds_m',
-                                              '[xmin, ymin, xmax, ymax]', 4)
+        xmin, ymin, xmax, ymax = self.numbers(raw['bounds_m'], 'bounds_m', 4,
+                                              '[xmin, ymin, xmax, ymax]')
         if not (xmin < xmax and ymin < ymax):
             self.fail('bounds_m', f'needs xmin < xmax and ymin < ymax, got {raw["bounds_m"]}')
         return xmin, ymin, xmax, ymax
@@ -635,8 +568,8 @@ class _Parser:
         where = self.named(raw, f'walls[{index}]')
         wall = self.mapping(raw, where, ('from', 'to', 'thickness_m'), ('name',))
         name = wall.get('name', f'walls[{index}]')
-        start = self.numbers(wall['from'], where, 'from', 2)
-        end = self.numbers(wall['to'], where, 'to', 2)
+        start = self.numbers(wall['from'], where, 2, 'from')
+        end = self.numbers(wall['to'], where, 2, 'to')
         thickness = self.positive(wall['thickness_m'], where, 'thickness_m')
         length = math.dist(start, end)
         if length <= _EPS:
@@ -660,8 +593,8 @@ class _Parser:
         if len(shapes) != 1:
             self.fail(where, f'needs exactly one shape of box, circle, polygon; got {shapes}')
         if 'box' in item:
-            box = self.mapping(item['box'], f'{where} box', ('center', 'size'), ('yaw_deg',))
-            cx, cy = self.numbers(box['center'], where, 'center', 2)
+            box = self.mapping(item['box'], f'{where}.box', ('center', 'size'), ('yaw_deg',))
+            cx, cy = self.numbers(box['center'], where, 2, 'center')
             size = box['size']
             if (not isinstance(size, (list, tuple)) or len(size) != 2
                     or not all(_is_number(v) and math.isfinite(v) and v > 0 for v in size)):
@@ -675,8 +608,8 @@ class _Parser:
                             for px, py in corners)
             return Obstacle(name, polygon, 'box'), None
         if 'circle' in item:
-            circle = self.mapping(item['circle'], f'{where} circle', ('center', 'radius_m'))
-            center = self.numbers(circle['center'], where, 'center', 2)
+            circle = self.mapping(item['circle'], f'{where}.circle', ('center', 'radius_m'))
+            center = self.numbers(circle['center'], where, 2, 'center')
             radius = self.positive(circle['radius_m'], where, 'radius_m')
             polygon = tuple(
                 (center[0] + radius * math.cos(2.0 * math.pi * k / CIRCLE_SIDES),
@@ -698,9 +631,7 @@ class _Parser:
         radius = self.positive(item['radius_m'], where, 'radius_m')
         speed = self.positive(item['speed_m_s'], where, 'speed_m_s')
         path = self.points(item['path'], where, 'path', 2)
-        loop = item.get('loop', True)
-        if not isinstance(loop, bool):
-            self.fail(where, f'loop must be true or false, not {loop!r}')
+        loop = self.boolean(item.get('loop', True), where, 'loop')
         xmin, ymin, xmax, ymax = bounds
         for point_index, (x, y) in enumerate(path):
             if not (xmin <= x <= xmax and ymin <= y <= ymax):
@@ -732,12 +663,6 @@ def _legs(path: Sequence[Point], loop: bool) -> List[Tuple[Point, Point]]:
     """Return the (start, end) pairs of a path, closing it when loop."""
     points = list(path) + ([path[0]] if loop else [])
     return list(zip(points[:-1], points[1:]))
-
-
-def _polygon_edges(polygon: Sequence[Point]) -> np.ndarray:
-    """Return the (n, 4) x1, y1, x2, y2 edges of a closed polygon."""
-    points = np.asarray(polygon, dtype=np.float64).reshape(-1, 2)
-    return np.hstack([points, np.roll(points, -1, axis=0)])
 
 
 def _runs(mask: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -779,47 +704,6 @@ def _fill_polygon(data: np.ndarray, polygon: Polygon, xmin: float, ymin: float,
     window = (slice(row0, row1), slice(col0, col1))
     inside = points_in_polygon(grid_x[window], grid_y[window], polygon)
     data[window][inside] = 100
-
-
-def _signed_area(points: Sequence[Point]) -> float:
-    """Return the shoelace area in m^2, positive for counter-clockwise points."""
-    total = 0.0
-    for index, (x1, y1) in enumerate(points):
-        x2, y2 = points[(index + 1) % len(points)]
-        total += x1 * y2 - x2 * y1
-    return total / 2.0
-
-
-def _cross(o: Point, a: Point, b: Point) -> float:
-    """Return the z component of (a - o) x (b - o)."""
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-
-def _on_segment(p: Point, q: Point, r: Point) -> bool:
-    """Return True if r, known collinear with p-q, lies within the segment's box."""
-    return (min(p[0], q[0]) - _EPS <= r[0] <= max(p[0], q[0]) + _EPS
-            and min(p[1], q[1]) - _EPS <= r[1] <= max(p[1], q[1]) + _EPS)
-
-
-def _segments_touch(p1: Point, p2: Point, p3: Point, p4: Point) -> bool:
-    """Return True if segments p1-p2 and p3-p4 cross or touch."""
-    d1, d2 = _cross(p3, p4, p1), _cross(p3, p4, p2)
-    d3, d4 = _cross(p1, p2, p3), _cross(p1, p2, p4)
-    if ((d1 > _EPS and d2 < -_EPS) or (d1 < -_EPS and d2 > _EPS)) and (
-            (d3 > _EPS and d4 < -_EPS) or (d3 < -_EPS and d4 > _EPS)):
-        return True
-    return ((abs(d1) <= _EPS and _on_segment(p3, p4, p1))
-            or (abs(d2) <= _EPS and _on_segment(p3, p4, p2))
-            or (abs(d3) <= _EPS and _on_segment(p1, p2, p3))
-            or (abs(d4) <= _EPS and _on_segment(p1, p2, p4)))
-
-
-def _folds_back(first: Tuple[Point, Point], second: Tuple[Point, Point]) -> bool:
-    """Return True if consecutive edges first -> second reverse onto each other."""
-    (a, b), (_, c) = first, second
-    if abs(_cross(a, b, c)) > _EPS:
-        return False
-    return (b[0] - a[0]) * (c[0] - b[0]) + (b[1] - a[1]) * (c[1] - b[1]) < 0.0
 
 
 def _is_number(value: Any) -> bool:

@@ -18,8 +18,9 @@ FL and RR backwards: duties (-, +, +, -); a +wz turn: (-, +, -, +).
 
 import math
 
+from mecanum_control.angles import wrap_angle
 from mecanum_control.board_model import MotorModel, Wheel
-from mecanum_control.kinematics import forward_kinematics, wrap_angle
+from mecanum_control.kinematics import forward_kinematics
 from mecanum_control.robot_config import default_config_path, load_robot_config
 import numpy as np
 import pytest

@@ -43,13 +43,12 @@ import time
 from typing import Optional
 
 from geometry_msgs.msg import Pose, PoseArray, PoseWithCovarianceStamped, TransformStamped
-from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_typed
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
-from mecanum_localization.transforms import (
-    PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
+from mecanum_localization.transforms import PlanarTransform, TransformBuffer, TransformError
 from mecanum_map_server.grid_messages import occupancy_map
 from mecanum_map_server.map_io import OccupancyMap
 from mecanum_navigation.amcl.particle_filter import (
@@ -206,7 +205,7 @@ class AmclNode(Node):
                        f'initial poses must be in {self.global_frame!r}')
             return
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        pose = (p.x, p.y, quaternion_yaw(q.x, q.y, q.z, q.w))
+        pose = (p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
         c = msg.pose.covariance
         covariance = np.array([[c[i * 6 + j] for j in (0, 1, 5)] for i in (0, 1, 5)])
         try:

@@ -17,9 +17,10 @@ nav2_amcl's (see :class:`AmclConfig`).
   range and too-close readings are skipped, as nav2). A beam end point at distance d
   from the nearest obstacle cell has ``pz = z_hit exp(-d^2 / (2 sigma_hit^2)) + z_rand /
   range_max``, d capped at ``laser_likelihood_max_dist``; end points off the map or on
-  unknown cells count as that cap (the z_rand floor). The distance field is an exact
-  Euclidean distance transform of the map (cells >= ``occupied_threshold``, 65, are
-  obstacles; nav2 takes only 100), computed once per map.
+  unknown cells count as that cap (the z_rand floor). The distance field is the exact
+  Euclidean distance transform (:mod:`mecanum_navigation.costmap.distance_transform`)
+  of the map (cells >= ``occupied_threshold``, 65, are obstacles; nav2 takes only 100),
+  computed once per map.
 * Combining beams: a particle's log-likelihood is the sum of log(pz) over the beams
   (nav2's likelihood_field_prob does this; plain likelihood_field uses an ad hoc
   1 + sum pz^3). Weights are kept as logarithms and normalised by log-sum-exp, so nothing
@@ -63,7 +64,9 @@ import math
 import numbers
 from typing import Optional, Sequence, Tuple
 
+from mecanum_control.angles import wrap_angle, wrap_angles
 from mecanum_map_server.map_io import OccupancyMap
+from mecanum_navigation.costmap.distance_transform import squared_distance_transform
 from numba import njit
 import numpy as np
 
@@ -81,13 +84,7 @@ YAW_BINS = 36
 RESAMPLE_ESS_FRACTION = 0.5
 #: nav2_amcl's default initial covariance (x, y variances m^2, yaw variance rad^2).
 DEFAULT_INITIAL_COVARIANCE = np.diag([0.5 ** 2, 0.5 ** 2, (math.pi / 12.0) ** 2])
-_BIG = 1e30
 _BIN_OFFSET = 1 << 20
-
-
-def wrap_angles(angles):
-    """Wrap angles (rad, scalar or array) to [-pi, pi)."""
-    return (np.asarray(angles, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)
@@ -221,71 +218,6 @@ class Estimate:
 
 
 # --- the likelihood field ---------------------------------------------------------------
-
-
-@njit(cache=True)
-def _edt_1d(f, n, out, v, z):
-    """
-    Lower envelope of parabolas (Felzenszwalb-Huttenlocher): out[q] = min_p (q-p)^2 + f[p].
-
-    Sites with f >= _BIG are not sites; with none, out is _BIG everywhere.
-    """
-    k = -1
-    for q in range(n):
-        if f[q] >= _BIG:
-            continue
-        if k < 0:
-            k = 0
-            v[0] = q
-            z[0] = -_BIG
-            z[1] = _BIG
-            continue
-        p = v[k]
-        s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
-        while s <= z[k]:
-            k -= 1
-            p = v[k]
-            s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
-        k += 1
-        v[k] = q
-        z[k] = s
-        z[k + 1] = _BIG
-    if k < 0:
-        for q in range(n):
-            out[q] = _BIG
-        return
-    k = 0
-    for q in range(n):
-        while z[k + 1] < q:
-            k += 1
-        p = v[k]
-        out[q] = (q - p) * (q - p) + f[p]
-
-
-@njit(cache=True)
-def squared_distance_transform(obstacles):
-    """Exact squared Euclidean distance (cells^2) of every cell to the nearest True cell."""
-    rows, cols = obstacles.shape
-    size = max(rows, cols)
-    f = np.empty(size)
-    out = np.empty(size)
-    v = np.empty(size, dtype=np.int64)
-    z = np.empty(size + 1)
-    columns = np.empty((rows, cols))
-    for c in range(cols):
-        for r in range(rows):
-            f[r] = 0.0 if obstacles[r, c] else _BIG
-        _edt_1d(f, rows, out, v, z)
-        for r in range(rows):
-            columns[r, c] = out[r]
-    result = np.empty((rows, cols))
-    for r in range(rows):
-        for c in range(cols):
-            f[c] = columns[r, c]
-        _edt_1d(f, cols, out, v, z)
-        for c in range(cols):
-            result[r, c] = out[c]
-    return result
 
 
 class LikelihoodField:
@@ -643,7 +575,7 @@ class ParticleFilter:
         cfg = self.config
         old = np.asarray(old_odom, dtype=float)
         delta = np.asarray(new_odom, dtype=float) - old
-        delta[2] = float(wrap_angles(delta[2]))
+        delta[2] = wrap_angle(float(delta[2]))
         trans = math.hypot(delta[0], delta[1])
         rot = delta[2]
         trans_sd = math.sqrt(cfg.alpha3 * trans * trans + cfg.alpha4 * rot * rot)
@@ -654,7 +586,7 @@ class ParticleFilter:
         trans_hat = trans + trans_sd * noise[:, 0]
         rot_hat = rot + rot_sd * noise[:, 1]
         strafe_hat = strafe_sd * noise[:, 2]
-        bearing = float(wrap_angles(math.atan2(delta[1], delta[0]) - old[2])) \
+        bearing = wrap_angle(math.atan2(delta[1], delta[0]) - float(old[2])) \
             + self._poses[:, 2]
         cos_b, sin_b = np.cos(bearing), np.sin(bearing)
         self._poses[:, 0] += trans_hat * cos_b + strafe_hat * sin_b
@@ -687,7 +619,7 @@ class ParticleFilter:
             delta = odom - self._odom_reference
             cfg = self.config
             if not (abs(delta[0]) > cfg.update_min_d or abs(delta[1]) > cfg.update_min_d
-                    or abs(float(wrap_angles(delta[2]))) > cfg.update_min_a):
+                    or abs(wrap_angle(float(delta[2]))) > cfg.update_min_a):
                 return UpdateResult(False, particle_count=count, reason='not moved enough')
             self.motion_update(self._odom_reference, odom)
         self._odom_reference = odom.copy()
@@ -887,7 +819,7 @@ class ParticleFilter:
         resultant = math.hypot(float(weights @ np.cos(poses[:, 2])),
                                float(weights @ np.sin(poses[:, 2])))
         covariance[2, 2] = -2.0 * math.log(min(max(resultant, 1e-12), 1.0))
-        return Estimate((x, y, float(wrap_angles(yaw))), covariance,
+        return Estimate((x, y, wrap_angle(yaw)), covariance,
                         float(cluster_weights[best]), int(cluster_weights.size))
 
 

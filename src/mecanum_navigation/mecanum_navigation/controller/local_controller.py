@@ -68,6 +68,7 @@ from dataclasses import dataclass, field, fields
 import math
 from typing import Optional, Sequence, Tuple
 
+from mecanum_control.angles import wrap_angle, wrap_angles
 from mecanum_navigation.costmap.costmap_2d import as_xy
 from mecanum_navigation.costmap.kernels import BLOCKED, segment_cost
 from numba import njit
@@ -579,7 +580,7 @@ class LocalController:
                 _distance_to_points(xs[:, -1], ys[:, -1], local_path, self._scratch)
                 + _distance_to_points(xs[:, middle], ys[:, middle], local_path, self._scratch))
         if p.heading_weight > 0.0 and heading_target is not None:
-            errors = np.abs((yaws[:, -1] - heading_target + math.pi) % (2.0 * math.pi) - math.pi)
+            errors = np.abs(wrap_angles(yaws[:, -1] - heading_target))
             scores += p.heading_weight * errors
         span = np.maximum(p.max_velocity - p.min_velocity, 1e-9)
         scores += p.smoothness_weight * np.sum(np.abs(targets - current) / span, axis=1)
@@ -914,11 +915,6 @@ def _first_clear(order, xs, ys, px, py, limit2):   # pragma: no cover - compiled
         if clear:
             return candidate
     return -1
-
-
-def wrap_angle(angle: float) -> float:
-    """Wrap an angle in radians to [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _distance_to_points(xs: np.ndarray, ys: np.ndarray, points: np.ndarray,

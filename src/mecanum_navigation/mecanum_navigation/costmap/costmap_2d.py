@@ -34,7 +34,8 @@ from typing import List, Optional, Sequence, Tuple
 
 from mecanum_map_server.map_io import OccupancyMap
 from mecanum_navigation.costmap import kernels
-from mecanum_safety.zone import points_in_polygon, Zone
+from mecanum_safety.polygon import points_in_polygon
+from mecanum_safety.zone import Zone
 import numpy as np
 
 FREE_SPACE = 0

@@ -64,12 +64,11 @@ import time
 from typing import Dict, Hashable, Optional
 
 from geometry_msgs.msg import PoseStamped, Twist
-from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, declare_typed
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
-from mecanum_localization.transforms import (
-    PlanarTransform, quaternion_yaw, TransformBuffer, TransformError)
+from mecanum_localization.transforms import PlanarTransform, TransformBuffer, TransformError
 from mecanum_map_server.grid_messages import occupancy_grid, occupancy_map
 from mecanum_map_server.map_io import OccupancyMap
 from mecanum_navigation.controller.local_controller import (
@@ -466,7 +465,7 @@ class NavigatorNode(Node):
     def _goal_in_map(self, msg: PoseStamped):
         """Return ((x, y, yaw) in global_frame, why it is invalid or '')."""
         p, q = msg.pose.position, msg.pose.orientation
-        pose = (p.x, p.y, quaternion_yaw(q.x, q.y, q.z, q.w))
+        pose = (p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
         norm = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
         if math.isfinite(norm) and norm < 1e-6:
             return pose, 'goal orientation is a zero quaternion (not a rotation)'

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import math
 from typing import Sequence, Tuple
 
+from mecanum_control.angles import wrap_angle
 from numba import njit
 import numpy as np
 
@@ -31,13 +32,6 @@ Pose = Tuple[float, float, float]
 
 #: Kernel codes used in the compiled kernels.
 KERNELS = {None: 0, 'none': 0, 'huber': 1, 'cauchy': 2}
-
-_TWO_PI = 2.0 * math.pi
-
-
-def wrap_angle(angle: float) -> float:
-    """Wrap an angle in radians to [-pi, pi)."""
-    return (angle + math.pi) % _TWO_PI - math.pi
 
 
 def compose(a: Sequence[float], b: Sequence[float]) -> Pose:
@@ -369,10 +363,9 @@ def _rcm(ptr, adjacency):
     return order[::-1].copy()
 
 
-@njit(cache=True)
-def _wrap(angle):
-    """Wrap an angle to [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+#: mecanum_control.angles.wrap_angle compiled for the kernels: [-pi, pi), one definition.
+#: (numba's cache of a kernel calling it is not invalidated by an edit of angles.py.)
+_wrap = njit(cache=True)(wrap_angle)
 
 
 @njit(cache=True)

@@ -3,7 +3,8 @@ Matching a 2-D laser scan against an occupancy grid (pure numpy + numba, no ROS)
 
 The map is turned into a likelihood field: each cell holds exp(-d^2 / (2 sigma^2)),
 d the Euclidean distance (m) from the cell's centre to the map: to the nearest occupied
-cell's centre for a grid (an exact distance transform), or to the nearest point itself
+cell's centre for a grid (the exact distance transform of
+:mod:`mecanum_navigation.costmap.distance_transform`), or to the nearest point itself
 for a point cloud (LikelihoodField.from_points, no rounding to cells). Grid conventions
 are map_io.OccupancyMap's: row 0 is the BOTTOM row, (origin_x, origin_y) the lower-left
 corner of cell (0, 0), no rotation; a point lies in the cell containing it.
@@ -42,7 +43,9 @@ from dataclasses import dataclass
 import math
 from typing import Optional, Sequence, Tuple
 
+from mecanum_control.angles import wrap_angle
 from mecanum_map_server.map_io import OccupancyMap
+from mecanum_navigation.costmap.distance_transform import squared_distance_transform
 from numba import njit
 import numpy as np
 
@@ -136,7 +139,8 @@ class LikelihoodField:
         origin = tuple(float(v) for v in origin_xy)
         if len(origin) != 2 or not all(math.isfinite(v) for v in origin):
             raise ValueError(f'origin_xy must be 2 finite numbers, got {origin_xy!r}')
-        squared = squared_distance_transform(mask.astype(np.bool_)) * float(resolution_m) ** 2
+        # An empty grid's NO_OBSTACLE becomes _FAR, as for cells out of from_points' reach.
+        squared = np.minimum(squared_distance_transform(mask), _FAR) * float(resolution_m) ** 2
         self._set(squared, float(resolution_m), origin, float(sigma_m))
 
     def _set(self, squared_m2: np.ndarray, resolution_m: float, origin: Tuple[float, float],
@@ -292,9 +296,8 @@ def match_scan(field: LikelihoodField, points, prior: Sequence[float],
     hit_distance = 1.5 * res if config.hit_distance_m is None else config.hit_distance_m
     score, response = _score(field.distance_m, field.field, pts, pose, ox, oy, res,
                              hit_distance)
-    yaw = (float(pose[2]) + math.pi) % (2.0 * math.pi) - math.pi
-    return MatchResult((float(pose[0]), float(pose[1]), yaw), float(score), float(response),
-                       covariance, len(pts))
+    return MatchResult((float(pose[0]), float(pose[1]), wrap_angle(float(pose[2]))),
+                       float(score), float(response), covariance, len(pts))
 
 
 def voxel_filter(points, cell_m: float) -> np.ndarray:
@@ -328,77 +331,6 @@ def _covariance(curvature: np.ndarray, window_cov: np.ndarray, res: float,
     covariance = 0.5 * (covariance + covariance.T)
     covariance += np.diag([(0.25 * res) ** 2, (0.25 * res) ** 2, (0.25 * step) ** 2])
     return covariance
-
-
-def squared_distance_transform(occupied: np.ndarray) -> np.ndarray:
-    """
-    Return each cell's squared Euclidean distance (cells^2) to the nearest True cell.
-
-    Exact (Felzenszwalb and Huttenlocher's lower envelope of parabolas, columns then
-    rows); cells of a grid with no True cell get 1e18.
-    """
-    mask = np.ascontiguousarray(np.asarray(occupied, dtype=np.bool_))
-    if mask.ndim != 2:
-        raise ValueError(f'occupied must be a 2-D array, got shape {mask.shape}')
-    return _distance_transform(mask)
-
-
-@njit(cache=True)
-def _envelope_1d(f, out, hull, bounds):
-    """
-    1-D squared distance transform: out[q] = min over p of (q - p)^2 + f[p].
-
-    The lower envelope of the parabolas rooted at each p; _FAR entries are finite, so
-    they simply never win against a real one (no inf - inf).
-    """
-    n = f.shape[0]
-    k = 0
-    hull[0] = 0
-    bounds[0] = -np.inf
-    bounds[1] = np.inf
-    for q in range(1, n):
-        p = hull[k]
-        s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
-        while s <= bounds[k]:
-            k -= 1
-            p = hull[k]
-            s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
-        k += 1
-        hull[k] = q
-        bounds[k] = s
-        bounds[k + 1] = np.inf
-    k = 0
-    for q in range(n):
-        while bounds[k + 1] < q:
-            k += 1
-        p = hull[k]
-        value = (q - p) * (q - p) + f[p]
-        out[q] = value if value < _FAR else _FAR
-
-
-@njit(cache=True)
-def _distance_transform(mask):
-    """Exact squared Euclidean distance transform (cells^2) of a boolean grid."""
-    rows, cols = mask.shape
-    size = max(rows, cols)
-    hull = np.empty(size, dtype=np.int64)
-    bounds = np.empty(size + 1, dtype=np.float64)
-    column = np.empty(rows, dtype=np.float64)
-    out_column = np.empty(rows, dtype=np.float64)
-    partial = np.empty((rows, cols), dtype=np.float64)
-    for c in range(cols):
-        for r in range(rows):
-            column[r] = 0.0 if mask[r, c] else _FAR
-        _envelope_1d(column, out_column, hull, bounds)
-        for r in range(rows):
-            partial[r, c] = out_column[r]
-    result = np.empty((rows, cols), dtype=np.float64)
-    row_out = np.empty(cols, dtype=np.float64)
-    for r in range(rows):
-        _envelope_1d(partial[r], row_out, hull, bounds)
-        for c in range(cols):
-            result[r, c] = row_out[c]
-    return result
 
 
 @njit(cache=True)

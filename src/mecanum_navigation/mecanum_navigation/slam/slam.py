@@ -50,10 +50,11 @@ from dataclasses import dataclass, fields
 import math
 from typing import List, Optional, Sequence, Tuple
 
+from mecanum_control.angles import wrap_angle
 from mecanum_map_server.map_io import OccupancyMap
 from mecanum_navigation.slam.occupancy_grid_mapping import (
     GridMappingConfig, OccupancyGridMapper, scan_to_rays)
-from mecanum_navigation.slam.pose_graph import compose, inverse, PoseGraph, relative, wrap_angle
+from mecanum_navigation.slam.pose_graph import compose, inverse, PoseGraph, relative
 from mecanum_navigation.slam.scan_matching import (
     LikelihoodField, match_scan, MatchResult, ScanMatcherConfig, voxel_filter)
 import numpy as np

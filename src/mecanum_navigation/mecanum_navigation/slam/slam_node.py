@@ -29,7 +29,7 @@ import time
 from typing import Optional
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
-from mecanum_control.kinematics import quaternion_from_yaw
+from mecanum_control.angles import quaternion_from_yaw
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
