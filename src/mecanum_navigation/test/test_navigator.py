@@ -4,9 +4,10 @@ import math
 from pathlib import Path
 import re
 
+from mecanum_control.angles import wrap_angle
 from mecanum_control.kinematics import integrate_pose
 from mecanum_control.robot_config import default_config_path, load_robot_config
-from mecanum_localization.transforms import PlanarTransform, wrap_angle
+from mecanum_localization.transforms import PlanarTransform
 from mecanum_map_server.map_io import find_map_file, load_map, OccupancyMap
 from mecanum_navigation.controller.local_controller import (
     ControllerParams, LocalController, ProgressChecker, STATUS_NO_VALID_TRAJECTORY)
@@ -15,9 +16,9 @@ from mecanum_navigation.costmap.costmap_2d import (
     ZoneLayer)
 from mecanum_navigation.navigator import navigator as nav
 from mecanum_navigation.navigator.navigator import (
-    backup_clear, backup_direction, estimated_time_remaining, lethal_points, map_to_odom_transform,
-    Navigator, NavigatorParams, Outcome, path_blocked, project_onto_path, TickInputs,
-    transform_points, ZERO_TWIST)
+    estimated_time_remaining, map_to_odom_transform, Navigator, NavigatorParams, Outcome,
+    path_blocked, project_onto_path, TickInputs, transform_points, ZERO_TWIST)
+from mecanum_navigation.navigator.recoveries import backup_clear, backup_direction, lethal_points
 from mecanum_navigation.planner.planner import GridPlanner, PlanningError
 from mecanum_safety.zone import make_zone
 import numpy as np

@@ -44,14 +44,15 @@ default behaviour tree ("navigate w/ replanning and recovery"):
   ``required_movement_radius`` for ``movement_time_allowance``), or the controller
   reports ``no_valid_trajectory`` for ``failure_tolerance`` s, or a blocked path cannot
   be replanned. Each failure starts the next recovery of the round robin
-  RECOVERY_SEQUENCE: clear the local costmap (the node clears its obstacle layer), spin
-  in place by ``spin_dist`` (always collision-free for a circular footprint), back up
-  ``backup_dist`` (holonomic: straight away from the nearest lethal cell of the local
-  costmap, backwards when there is none; skipped or stopped when that motion would bring
-  the footprint nearer an obstacle than ``min(robot_radius_m, its start clearance)``),
-  wait ``wait_duration`` s. After a recovery the navigator replans and resumes. The
-  failure after ``max_recoveries`` recoveries ends the goal with STUCK (NO_VALID_PATH for
-  a planning failure), with the reason;
+  RECOVERY_SEQUENCE, run by :mod:`~mecanum_navigation.navigator.recoveries`: clear the
+  local costmap (the node clears its obstacle layer), spin in place by ``spin_dist``
+  (always collision-free for a circular footprint), back up ``backup_dist`` (holonomic:
+  straight away from the nearest lethal cell of the local costmap, backwards when there
+  is none; skipped or stopped when that motion would bring the footprint nearer an
+  obstacle than ``min(robot_radius_m, its start clearance)``), wait ``wait_duration``
+  s. After a recovery the navigator replans and resumes. The failure after
+  ``max_recoveries`` recoveries ends the goal with STUCK (NO_VALID_PATH for a planning
+  failure), with the reason;
 - success when the controller reports ``goal_reached`` (its goal checker: xy and yaw
   tolerances); a newer goal preempts (the old one ends PREEMPTED, also if the new one
   then fails validation, as in Nav2), cancel ends CANCELED. The tick in which a goal
@@ -70,12 +71,15 @@ from dataclasses import dataclass, field
 import math
 from typing import Callable, Hashable, List, Optional, Sequence, Tuple
 
-from mecanum_localization.transforms import PlanarTransform, wrap_angle
+from mecanum_control.angles import wrap_angle
+from mecanum_localization.transforms import PlanarTransform
 from mecanum_navigation.controller.local_controller import (
-    LocalController, ProgressChecker, ramp_step, STATUS_GOAL_REACHED, STATUS_NO_VALID_TRAJECTORY,
+    LocalController, ProgressChecker, STATUS_GOAL_REACHED, STATUS_NO_VALID_TRAJECTORY,
     STATUS_STALE_POSE)
 from mecanum_navigation.costmap.costmap_2d import (
     Costmap2D, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE)
+from mecanum_navigation.navigator.recoveries import (
+    Recovery, RECOVERY_SEQUENCE, start_recovery, step_recovery, ZERO_TWIST)
 from mecanum_navigation.planner.planner import PlanningError
 from mecanum_safety.zone import Zone
 import numpy as np
@@ -106,23 +110,12 @@ IDLE = 'idle'
 FOLLOWING = 'following'
 RECOVERING = 'recovering'
 
-CLEAR_LOCAL_COSTMAP = 'clear_local_costmap'
-SPIN = 'spin'
-BACK_UP = 'back_up'
-WAIT = 'wait'
-#: The recoveries, tried in turn (round robin, as Nav2's default behaviour tree).
-RECOVERY_SEQUENCE = (CLEAR_LOCAL_COSTMAP, SPIN, BACK_UP, WAIT)
-
-ZERO_TWIST: Twist2D = (0.0, 0.0, 0.0)
 #: The pruned path's first point moves on after this much progress along it (m).
 PRUNE_STEP_M = 0.5
 #: How far along the path the robot's projection is searched from the last one (m).
 PROJECTION_SEARCH_M = 1.5
 #: A robot whose own cell is blocked plans from the nearest free cell this near (m).
 START_ESCAPE_RADIUS_M = 0.5
-#: A spin ends this near its angle (rad); a back up this near its distance (m).
-SPIN_TOLERANCE_RAD = 0.02
-BACKUP_TOLERANCE_M = 0.005
 
 
 @dataclass(frozen=True)
@@ -246,18 +239,6 @@ class _Goal:
     invalid_reason: str = ''
 
 
-@dataclass
-class _Recovery:
-    kind: str
-    start_s: float
-    reason: str
-    start_pose: Pose2D
-    turned_rad: float = 0.0
-    last_yaw: float = 0.0
-    direction: Tuple[float, float] = (0.0, 0.0)
-    clearance_m: float = math.inf
-
-
 class _Navigation:
     """The state of the active goal."""
 
@@ -275,7 +256,7 @@ class _Navigation:
         self.odom_path: Optional[np.ndarray] = None
         self.odom_path_key = None
         self.recoveries = 0
-        self.recovery: Optional[_Recovery] = None
+        self.recovery: Optional[Recovery] = None
         self.failing_since_s: Optional[float] = None
         self.travelled_m = 0.0
         self.last_odom_pose = odom_pose
@@ -633,62 +614,23 @@ class Navigator:
             return
         kind = RECOVERY_SEQUENCE[nav.recoveries % len(RECOVERY_SEQUENCE)]
         nav.recoveries += 1
-        odom_pose = tuple(float(v) for v in inputs.robot_in_odom)
-        recovery = _Recovery(kind, inputs.now_s, reason, odom_pose, last_yaw=odom_pose[2])
-        nav.recovery = recovery
+        nav.recovery = start_recovery(kind, inputs.now_s, reason, inputs.robot_in_odom,
+                                      inputs.local_costmap)
         nav.state = RECOVERING
         out.events.append(f'recovery {nav.recoveries}/{limit}: {kind} ({reason})')
-        if kind == BACK_UP:
-            direction, clearance = backup_direction(inputs.local_costmap, odom_pose)
-            recovery.direction, recovery.clearance_m = direction, clearance
         twist = self._recover(inputs, out)
         out.twist = ZERO_TWIST if twist is None else twist
 
     def _recover(self, inputs: TickInputs, out: TickOutput) -> Optional[Twist2D]:
-        """Run the active recovery; return its twist, or None once it is over."""
-        nav = self._nav
-        recovery = nav.recovery
-        p = self.controller.params
-        now = inputs.now_s
+        """Run the active recovery one tick; return its twist, or None once it is over."""
         current = self._last_command if inputs.twist is None else tuple(inputs.twist)
-        elapsed = now - recovery.start_s
-        pose = tuple(float(v) for v in inputs.robot_in_odom)
-        if recovery.kind == CLEAR_LOCAL_COSTMAP:
+        step = step_recovery(self._nav.recovery, inputs.now_s, inputs.robot_in_odom, current,
+                             inputs.local_costmap, self.params, self.controller.params)
+        if step.clear_local_costmap:
             out.clear_local_costmap = True
-            return None
-        if recovery.kind == WAIT:
-            return ZERO_TWIST if elapsed < self.params.wait_duration - 1e-9 else None
-        if elapsed > self.params.time_allowance:
-            out.warnings.append(f'{recovery.kind} did not finish within '
-                                f'{self.params.time_allowance:g} s')
-            return None
-        if recovery.kind == SPIN:
-            recovery.turned_rad += wrap_angle(pose[2] - recovery.last_yaw)
-            recovery.last_yaw = pose[2]
-            remaining = self.params.spin_dist - recovery.turned_rad
-            if remaining <= SPIN_TOLERANCE_RAD:
-                return None
-            # The fastest turn that still stops on the angle with half the deceleration.
-            speed = min(self.params.max_rotational_vel,
-                        math.sqrt(p.acc_lim_theta * remaining),
-                        remaining / (2.0 * p.control_period))
-            return _ramp(current, (0.0, 0.0, speed), p)
-        # BACK_UP
-        moved = math.hypot(pose[0] - recovery.start_pose[0], pose[1] - recovery.start_pose[1])
-        remaining = self.params.backup_dist - moved
-        if remaining <= BACKUP_TOLERANCE_M:
-            return None
-        dx, dy = recovery.direction
-        if not backup_clear(inputs.local_costmap, pose[:2], (dx, dy), remaining,
-                            min(self.params.robot_radius_m, recovery.clearance_m)):
-            out.warnings.append('back up stopped: it would bring the robot nearer an obstacle')
-            return None
-        limit = min(p.acc_lim_x, p.acc_lim_y)
-        speed = min(self.params.backup_speed, math.sqrt(limit * remaining),
-                    remaining / (2.0 * p.control_period))
-        cos_yaw, sin_yaw = math.cos(pose[2]), math.sin(pose[2])
-        body = (speed * (cos_yaw * dx + sin_yaw * dy), speed * (-sin_yaw * dx + cos_yaw * dy))
-        return _ramp(current, (body[0], body[1], 0.0), p)
+        if step.warning:
+            out.warnings.append(step.warning)
+        return step.twist
 
     def _resume(self, inputs: TickInputs, out: TickOutput) -> None:
         """After a recovery: replan, reset the checkers and follow again."""
@@ -787,64 +729,6 @@ def nearest_free_cell(costmap: Costmap2D, xy: Point, radius_m: float) -> Optiona
     index = np.argmin(np.where(usable, distance, np.inf))
     row, col = np.unravel_index(index, distance.shape)
     return costmap.map_to_world(int(row), int(col))
-
-
-def lethal_points(costmap: Costmap2D) -> np.ndarray:
-    """Return the (N, 2) centres of the costmap's lethal cells."""
-    rows, cols = np.nonzero(costmap.costs == LETHAL_OBSTACLE)
-    return np.column_stack((costmap.origin_x_m + (cols + 0.5) * costmap.resolution_m,
-                            costmap.origin_y_m + (rows + 0.5) * costmap.resolution_m))
-
-
-def backup_direction(costmap: Costmap2D, pose: Sequence[float]) -> Tuple[Point, float]:
-    """
-    Return (unit direction in the costmap frame, clearance m) for backing up from pose.
-
-    The direction points from the nearest lethal cell's centre to the robot; with no
-    lethal cell (or the robot on one) it is the robot's backward direction. The
-    clearance is the distance to that nearest lethal cell (inf when there is none).
-    """
-    x, y, yaw = (float(v) for v in pose)
-    backward = (-math.cos(yaw), -math.sin(yaw))
-    obstacles = lethal_points(costmap)
-    if obstacles.shape[0] == 0:
-        return backward, math.inf
-    distances = np.hypot(obstacles[:, 0] - x, obstacles[:, 1] - y)
-    index = int(np.argmin(distances))
-    clearance = float(distances[index])
-    if clearance < 1e-9:
-        return backward, 0.0
-    return ((x - obstacles[index, 0]) / clearance, (y - obstacles[index, 1]) / clearance), \
-        clearance
-
-
-def backup_clear(costmap: Costmap2D, xy: Sequence[float], direction: Sequence[float],
-                 distance_m: float, clearance_m: float) -> bool:
-    """
-    Tell whether moving distance_m from xy along direction keeps clearance_m from obstacles.
-
-    The straight motion is sampled every half cell; each sample must be at least
-    clearance_m from every lethal cell's centre and on the costmap.
-    """
-    steps = max(1, int(math.ceil(distance_m / (0.5 * costmap.resolution_m))))
-    t = np.linspace(0.0, distance_m, steps + 1)[1:]
-    xs = xy[0] + direction[0] * t
-    ys = xy[1] + direction[1] * t
-    inside = ((xs >= costmap.origin_x_m) & (xs < costmap.origin_x_m + costmap.size_x_m)
-              & (ys >= costmap.origin_y_m) & (ys < costmap.origin_y_m + costmap.size_y_m))
-    if not np.all(inside):
-        return False
-    obstacles = lethal_points(costmap)
-    if obstacles.shape[0] == 0:
-        return True
-    d2 = (xs[:, None] - obstacles[None, :, 0]) ** 2 + (ys[:, None] - obstacles[None, :, 1]) ** 2
-    return bool(np.sqrt(d2.min()) >= clearance_m - 1e-9)
-
-
-def _ramp(current: Sequence[float], target: Sequence[float], params) -> Twist2D:
-    """Return the twist one control period toward target within the acceleration limits."""
-    twist = ramp_step(current, target, params.acceleration, params.control_period)
-    return float(twist[0]), float(twist[1]), float(twist[2])
 
 
 def _check_number(name: str, value, minimum: float = -math.inf,
