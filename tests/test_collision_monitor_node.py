@@ -3,12 +3,18 @@ Integration: the collision_monitor node (collision_monitor.launch.yaml) on simul
 
 The test node publishes what the robot would: the laser mount on /tf_static (5 cm ahead
 of base_link as motor_params.yaml's lidar_mount_x_m, but turned by 180 degrees, so a node
-ignoring the transform would see the wall behind the robot), LaserScans of a straight
-wall across the robot's path (360 beams of 1 degree, ranges from the geometry), and
-commands on cmd_vel_mux (the twist_mux's output) about every 50 ms. Expected outputs are worked out from
+ignoring the transform would see the wall behind the robot), LaserScans of a room (360
+beams of 1 degree, ranges from the geometry): a wall across the robot's path at a
+chosen distance, the other three ROOM_M away, beyond every zone's reach (a closed room,
+as the apartment: every beam returns), and commands on cmd_vel_mux (the twist_mux's
+output) about every 50 ms. Expected outputs are worked out from
 config/collision_monitor.yaml: unchanged commands when nothing is near, zero in the stop
 zone, and for the approach zone what the pure core computes for the same scan (its
 float32 ranges) and zones read from the file here.
+
+A bad lidar stops the robot until good scans return (issue 31): a blinded one (every
+range +inf), a frozen one (the same noisy ranges again and again, new stamps) and one
+stamping its scans in the future.
 """
 
 import math
@@ -39,6 +45,8 @@ PARAMS = yaml.safe_load(
 MOUNT = (load_robot_config(default_config_path()).lidar_mount_x_m, 0.0, math.pi)
 BEAMS = 360
 RANGE_MIN_M, RANGE_MAX_M = 0.15, 12.0
+#: Distance (m) from base_link to the room's back and side walls.
+ROOM_M = 2.0
 
 
 def vertices(points):
@@ -65,8 +73,13 @@ def config_zones():
     return zones
 
 
-def wall_scan(distance_m, stamp_ns):
-    """Return a LaserScan of a wall across x = distance_m in base_link (None: nothing)."""
+def wall_scan(distance_m, stamp_ns, noise_m=0.0, rng=None):
+    """
+    Return a LaserScan of the room: a wall across x = distance_m in base_link.
+
+    The back and side walls are at x = -ROOM_M and y = +-ROOM_M; noise_m adds gaussian
+    noise (m, 1 sigma, from rng) to every range, as a real lidar has.
+    """
     msg = LaserScan()
     msg.header.frame_id = 'laser'
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10 ** 9)
@@ -74,13 +87,20 @@ def wall_scan(distance_m, stamp_ns):
     msg.angle_increment = 2.0 * math.pi / BEAMS
     msg.angle_max = msg.angle_min + (BEAMS - 1) * msg.angle_increment
     msg.range_min, msg.range_max = RANGE_MIN_M, RANGE_MAX_M
+    # Beam i leaves the laser at (MOUNT x, 0) along base_link angle yaw + angle_i; its
+    # range is that of the nearest wall it meets.
+    angles = MOUNT[2] + msg.angle_min + msg.angle_increment * np.arange(BEAMS)
+    cos, sin = np.cos(angles), np.sin(angles)
     ranges = np.full(BEAMS, math.inf)
-    if distance_m is not None:
-        # Beam i leaves the laser at (MOUNT x, 0) along base_link angle yaw + angle_i.
-        cos = np.cos(MOUNT[2] + msg.angle_min + msg.angle_increment * np.arange(BEAMS))
-        ahead = cos > 1e-6
-        ranges[ahead] = (distance_m - MOUNT[0]) / cos[ahead]
-        ranges[ranges > RANGE_MAX_M] = math.inf
+    with np.errstate(divide='ignore'):
+        for along, offset in ((cos, distance_m - MOUNT[0]), (cos, -ROOM_M - MOUNT[0]),
+                              (sin, ROOM_M), (sin, -ROOM_M)):
+            hit = offset / along
+            ranges = np.where((np.abs(along) > 1e-9) & (hit > 0.0), np.minimum(ranges, hit),
+                              ranges)
+    if noise_m > 0.0:
+        ranges = ranges + rng.normal(0.0, noise_m, BEAMS)
+    ranges[ranges > RANGE_MAX_M] = math.inf
     msg.ranges = ranges.tolist()
     return msg
 
@@ -96,7 +116,13 @@ def expected_twist(command, distance_m):
 
 
 class Publishers(LoopThread):
-    """Publishes commands (~20 Hz) and wall scans (~10 Hz) from a thread, while set."""
+    """
+    Publishes commands (~20 Hz) and room scans (~10 Hz) from a thread, while set.
+
+    Scans carry noise_m of noise and are stamped stamp_offset_s after the test's clock;
+    lidar 'blinded' sends every range +inf, 'frozen' the last ranges again (new stamps;
+    frozen_repeats counts them).
+    """
 
     def __init__(self, test_node):
         """Create the publishers; start() begins publishing."""
@@ -105,16 +131,33 @@ class Publishers(LoopThread):
         self.scan_pub = test_node.node.create_publisher(LaserScan, 'scan', 10)
         self.command = None
         self.scans = False
-        self.wall_m = None
+        self.wall_m = 3.0
+        self.noise_m = 0.0
+        self.lidar = 'healthy'
+        self.stamp_offset_s = 0.0
+        self.frozen_repeats = 0
         self.last_scan_stamp_s = math.nan
+        self._rng = np.random.default_rng(31)
         super().__init__()
+
+    def _scan(self, stamp_ns, previous):
+        """Return the next scan of the lidar as it is now."""
+        msg = wall_scan(self.wall_m, stamp_ns, self.noise_m, self._rng)
+        if self.lidar == 'blinded':
+            msg.ranges = [math.inf] * BEAMS
+        elif self.lidar == 'frozen' and previous is not None:
+            msg.ranges = previous.ranges
+            self.frozen_repeats += 1
+        return msg
 
     def _run(self):
         tick = 0
+        previous = None
         while not self._stop.is_set():
             if self.scans and tick % 2 == 0:
                 stamp_ns = self.test_node.clock_ns
-                self.scan_pub.publish(wall_scan(self.wall_m, stamp_ns))
+                previous = self._scan(stamp_ns + int(self.stamp_offset_s * 1e9), previous)
+                self.scan_pub.publish(previous)
                 self.last_scan_stamp_s = stamp_ns * 1e-9
             command = self.command
             if command is not None:
@@ -145,6 +188,19 @@ def settle(out, state, twist, state_text, count=4):
     assert all(m.data == state_text for m in state.since(start))
 
 
+def publish_mount(test_node):
+    """Publish the laser mount (base_link -> laser) on /tf_static."""
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    static = test_node.node.create_publisher(TFMessage, '/tf_static', latched)
+    mount = TransformStamped()
+    mount.header.frame_id, mount.child_frame_id = 'base_link', 'laser'
+    mount.transform.translation.x = MOUNT[0]
+    mount.transform.rotation.z, mount.transform.rotation.w = (math.sin(MOUNT[2] / 2),
+                                                              math.cos(MOUNT[2] / 2))
+    static.publish(TFMessage(transforms=[mount]))
+    return static
+
+
 def test_zones_sources_and_transforms(start_system, test_node):
     test_node.start_clock()
     out = test_node.record(Twist, PARAMS['cmd_vel_out_topic'])
@@ -165,17 +221,11 @@ def test_zones_sources_and_transforms(start_system, test_node):
         publishers.wall_m = 3.0
         publishers.scans = True
         publishers.command = (0.3, 0.0, 0.0)
-        settle(out, state, (0.0, 0.0, 0.0), 'STOP invalid source')
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP invalid source: scan no transform')
         system.wait_for_line(r'\[WARN\].*no transform base_link <- laser yet')
 
         # The mount arrives: nothing within reach, every command passes unchanged.
-        static = test_node.node.create_publisher(TFMessage, '/tf_static', latched)
-        mount = TransformStamped()
-        mount.header.frame_id, mount.child_frame_id = 'base_link', 'laser'
-        mount.transform.translation.x = MOUNT[0]
-        mount.transform.rotation.z, mount.transform.rotation.w = (math.sin(MOUNT[2] / 2),
-                                                                  math.cos(MOUNT[2] / 2))
-        static.publish(TFMessage(transforms=[mount]))
+        publish_mount(test_node)
         for command in [(0.5, 0.0, 0.0), (0.2, -0.4, 1.0), (-0.6, 0.0, -2.0)]:
             assert expected_twist(command, 3.0).action == 'none'
             publishers.command = command
@@ -218,7 +268,7 @@ def test_zones_sources_and_transforms(start_system, test_node):
         last_scan_s = publishers.last_scan_stamp_s
         out.wait_for_new(lambda m: np.all(twist_of(m) == 0.0))
         assert test_node.clock_ns * 1e-9 - last_scan_s >= PARAMS['source_timeout']
-        settle(out, state, (0.0, 0.0, 0.0), 'STOP invalid source', count=2)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP invalid source: scan stale', count=2)
 
         # No command input: nothing published.
         publishers.command = None
@@ -244,6 +294,56 @@ def test_zones_sources_and_transforms(start_system, test_node):
     assert 'Traceback' not in system.output()
 
 
+#: What each lidar fault of the test does to the Publishers, and the state it gives.
+LIDAR_FAULTS = {
+    'blinded': ({'lidar': 'blinded'}, 'blinded',
+                r"source 'scan': only 0% of its beams are usable"),
+    'frozen': ({'lidar': 'frozen'}, 'frozen',
+               r"source 'scan': \d+ identical scans in a row"),
+    'future': ({'stamp_offset_s': 1.0}, 'stamped in the future',
+               r"source 'scan' is stamped (0\.9\d*|1(\.0\d*)?) s in the future"),
+}
+
+
+@pytest.mark.parametrize('fault', list(LIDAR_FAULTS))
+def test_a_bad_lidar_stops_the_robot_until_good_scans_return(start_system, test_node, fault):
+    """
+    Healthy noisy scans of a far wall let a command through; the fault stops it.
+
+    The state and the log say why (the source and what is wrong with it); once healthy
+    scans return, the command passes again (no latch).
+    """
+    settings, kind, log_reason = LIDAR_FAULTS[fault]
+    test_node.start_clock()
+    out = test_node.record(Twist, PARAMS['cmd_vel_out_topic'])
+    state = test_node.record(String, 'collision_monitor_state')
+    system = start_system('mecanum_safety', 'collision_monitor.launch.yaml',
+                          'use_sim_time:=true')
+    system.wait_for_line(r'\[collision_monitor\].*Collision monitor started')
+    publish_mount(test_node)
+    publishers = Publishers(test_node)
+    publishers.noise_m = 0.01       # the simulated lidar's noise (LidarConfig)
+    publishers.scans = True
+    publishers.command = (0.3, 0.0, 0.0)
+    publishers.start()
+    try:
+        settle(out, state, (0.3, 0.0, 0.0), 'DO_NOTHING')
+        for key, value in settings.items():
+            setattr(publishers, key, value)
+        settle(out, state, (0.0, 0.0, 0.0), f'STOP invalid source: scan {kind}')
+        system.wait_for_line(rf'\[collision_monitor\].*Robot to stop due to invalid source: '
+                             rf'scan {kind}: {log_reason}')
+        if fault == 'frozen':
+            # Not at the first repeat: only after max_identical_scans of them.
+            assert publishers.frozen_repeats >= PARAMS['max_identical_scans']
+        publishers.lidar, publishers.stamp_offset_s = 'healthy', 0.0
+        settle(out, state, (0.3, 0.0, 0.0), 'DO_NOTHING')
+        system.wait_for_line(r'\[collision_monitor\].*Robot to continue normal operation')
+    finally:
+        publishers.stop()
+    assert 'Traceback' not in system.output()
+
+
 @pytest.mark.parametrize('arguments, message', [
     ([], 'parameter polygons is empty'),
     (['-p', 'polygons:=[Stop]', '-p', 'Stop.type:=circle', '-p', 'Stop.radius:=-0.3',
@@ -251,6 +351,12 @@ def test_zones_sources_and_transforms(start_system, test_node):
     (['-p', 'polygons:=[Slow]', '-p', 'Slow.type:=polygon', '-p',
       'Slow.points:=[0.5, 0.5, 0.5]', '-p', 'Slow.action_type:=slowdown'],
      r'parameter Slow\.points must hold an even number of values'),
+    (['-p', 'polygons:=[Stop]', '-p', 'Stop.type:=circle', '-p', 'Stop.radius:=0.3',
+      '-p', 'Stop.action_type:=stop', '-p', 'min_valid_beam_fraction:=1.5'],
+     r'parameter min_valid_beam_fraction must be finite and >= 0 and <= 1, got 1\.5'),
+    (['-p', 'polygons:=[Stop]', '-p', 'Stop.type:=circle', '-p', 'Stop.radius:=0.3',
+      '-p', 'Stop.action_type:=stop', '-p', 'max_identical_scans:=-1'],
+     r'parameter max_identical_scans must be an integer >= 0 \(0: no check\), got -1'),
 ])
 def test_bad_parameters_stop_the_node_with_a_clear_message(ros_env, arguments, message):
     result = subprocess.run(

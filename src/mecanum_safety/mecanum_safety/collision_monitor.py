@@ -26,9 +26,22 @@ robot, each a polygon or a circle centred on base_link with an action:
   below: then only the other points count.
 
 As in Nav2, zones are checked in order, a 'stop' ends the search, and the most
-restrictive result (lowest translation speed, then lowest |wz|) wins. A source whose
-data is older than source_timeout, a missing source and a non-finite command give
-'stop' too (with the reason). NaN/inf points are dropped.
+restrictive result (lowest translation speed, then lowest |wz|) wins. A missing source
+and a non-finite command give 'stop' too (with the reason). NaN/inf points are dropped.
+
+A source that cannot be trusted gives 'stop' before any zone is looked at (its reason
+names the source and what is wrong; ``MonitorResult.fault`` says it in a few words, e.g.
+'scan blinded'); nothing is latched, so the next good data lets motion resume:
+
+- stale: its stamp is more than source_timeout old (age = now - stamp > source_timeout);
+- stamped in the future: more than max_future_stamp_s ahead of now (age <
+  -max_future_stamp_s): such data would never go stale;
+- blinded: fewer than min_valid_beam_fraction of its beams are usable
+  (:func:`scan_usable_fraction`): a scan of nothing but +inf gives no points, which
+  would look like a clear path;
+- frozen: max_identical_scans scans in a row equal to the one before
+  (:class:`ScanRepeats`): a real lidar's ranges carry noise, so a driver republishing
+  one scan with new stamps shows as repeats.
 """
 
 from dataclasses import dataclass
@@ -42,6 +55,14 @@ Twist2D = Tuple[float, float, float]
 ZERO: Twist2D = (0.0, 0.0, 0.0)
 ACTIONS = ('stop', 'slowdown', 'limit', 'approach')
 ACTION_NONE = 'none'
+#: ScanRepeats: two scans differ by measurement noise, not by motion, when at least this
+#: fraction of the neighbouring beams' range differences change sign (white noise: 1/2;
+#: measured on the simulator's lidar in the apartment and lab: >= 0.43 standing with
+#: noise, <= 0.10 for noiseless scans of any motion, walkers included).
+NOISE_SIGN_CHANGE_FRACTION = 0.25
+#: ... among at least this many pairs of neighbouring beams that both changed (a real
+#: lidar's coarse range steps may leave many beams unchanged at rest).
+NOISE_MIN_PAIRS = 10
 
 
 def _number(name: str, value, low: Optional[float] = None, low_open: bool = False,
@@ -133,11 +154,20 @@ class Zone:
 
 @dataclass(frozen=True)
 class SourceData:
-    """Points (M x 2, base_link, m) of one source and the age of their stamp (s)."""
+    """
+    One source's latest data: its points and what tells whether to trust them.
+
+    points: (M, 2) in base_link (m). age_s: now - the data's stamp (s), signed: < 0 for
+    a stamp ahead of now. usable_fraction: the fraction of its beams that gave a usable
+    range (:func:`scan_usable_fraction`). identical_scans: how many scans in a row were
+    equal to the one before (:class:`ScanRepeats`).
+    """
 
     name: str
     points: np.ndarray
     age_s: float
+    usable_fraction: float = 1.0
+    identical_scans: int = 0
 
 
 @dataclass(frozen=True)
@@ -145,9 +175,11 @@ class MonitorResult:
     """
     The allowed twist and what acted.
 
-    action: 'none' or the action of the zone that acted (or 'stop' for stale data and
-    bad commands); zone: that zone's name ('' when none acted); reason: a sentence for
-    logs ('' when nothing acted); collision_time_s: t_c of an 'approach' that acted.
+    action: 'none' or the action of the zone that acted (or 'stop' for untrusted data
+    and bad commands); zone: that zone's name ('' when none acted); reason: a sentence
+    for logs ('' when nothing acted); collision_time_s: t_c of an 'approach' that acted;
+    fault: for a source that stopped the robot, its name and what is wrong ('scan
+    stale', 'scan stamped in the future', 'scan blinded', 'scan frozen'), else ''.
     """
 
     twist: Twist2D
@@ -155,13 +187,23 @@ class MonitorResult:
     zone: str = ''
     reason: str = ''
     collision_time_s: float = math.nan
+    fault: str = ''
 
 
 class CollisionMonitor:
     """Nav2's collision monitor as a plain class (see the module docstring)."""
 
-    def __init__(self, zones: Sequence[Zone], source_timeout: float = 2.0):
-        """Check and store the zones (in order) and the data timeout (s)."""
+    def __init__(self, zones: Sequence[Zone], source_timeout: float = 2.0,
+                 min_valid_beam_fraction: float = 0.5, max_identical_scans: int = 5,
+                 max_future_stamp_s: float = 0.1):
+        """
+        Check and store the zones (in order) and the source checks.
+
+        source_timeout (s, > 0) and max_future_stamp_s (s, >= 0): how old and how far
+        ahead of now a stamp may be; min_valid_beam_fraction (in [0, 1], 0: no check):
+        the least fraction of usable beams; max_identical_scans (integer >= 0, 0: no
+        check): the repeats that make a source frozen. Raises ValueError naming the bad one.
+        """
         zones = list(zones)
         for index, zone in enumerate(zones):
             if not isinstance(zone, Zone):
@@ -171,6 +213,15 @@ class CollisionMonitor:
             raise ValueError(f'zone names must be unique, got {names}')
         self.zones: List[Zone] = zones
         self.source_timeout = _number('source_timeout', source_timeout, 0.0, low_open=True)
+        self.max_future_stamp_s = _number('max_future_stamp_s', max_future_stamp_s, 0.0)
+        self.min_valid_beam_fraction = _number('min_valid_beam_fraction',
+                                               min_valid_beam_fraction, 0.0, high=1.0)
+        if isinstance(max_identical_scans, bool) \
+                or not isinstance(max_identical_scans, (int, np.integer)) \
+                or max_identical_scans < 0:
+            raise ValueError('max_identical_scans must be an integer >= 0 (0: no check), '
+                             f'got {max_identical_scans!r}')
+        self.max_identical_scans = int(max_identical_scans)
 
     def process(self, twist: Sequence[float], sources: Sequence[SourceData]) -> MonitorResult:
         """Return the allowed twist for the commanded one given the sources' points."""
@@ -184,11 +235,11 @@ class CollisionMonitor:
             return MonitorResult(ZERO, 'stop', '', 'no sensor data: stopping')
         clouds = []
         for source in sources:
-            age = float(source.age_s)
-            if not math.isfinite(age) or age > self.source_timeout:
-                return MonitorResult(ZERO, 'stop', '', f'source {source.name!r} data is '
-                                     f'{age:.3g} s old (source_timeout '
-                                     f'{self.source_timeout:g} s): stopping')
+            problem = self._distrust(source)
+            if problem:
+                kind, reason = problem
+                return MonitorResult(ZERO, 'stop', '', f'{reason}: stopping',
+                                     fault=f'{source.name} {kind}')
             clouds.append(_finite_points(source.points))
         points = np.concatenate(clouds) if clouds else np.zeros((0, 2))
         allowed: Twist2D = (command[0], command[1], command[2])
@@ -218,6 +269,108 @@ class CollisionMonitor:
             if result.action == 'stop':
                 break
         return result
+
+    def _distrust(self, source: SourceData) -> Optional[Tuple[str, str]]:
+        """Return (what is wrong, a sentence) for a source not to trust, else None."""
+        name = source.name
+        age = float(source.age_s)
+        if not math.isfinite(age) or age > self.source_timeout:
+            return 'stale', (f'source {name!r} data is {age:.3g} s old (source_timeout '
+                             f'{self.source_timeout:g} s)')
+        if age < -self.max_future_stamp_s:
+            return 'stamped in the future', (
+                f'source {name!r} is stamped {-age:.3g} s in the future '
+                f'(max_future_stamp_s {self.max_future_stamp_s:g} s): its clock or '
+                'driver is wrong')
+        usable = float(source.usable_fraction)
+        if not usable >= self.min_valid_beam_fraction:   # NaN too
+            return 'blinded', (
+                f'source {name!r}: only {_percent(usable)} of its beams are usable '
+                f'(min_valid_beam_fraction {_percent(self.min_valid_beam_fraction)}): '
+                'blinded, covered or invalid')
+        if 0 < self.max_identical_scans <= source.identical_scans:
+            return 'frozen', (
+                f'source {name!r}: {source.identical_scans} identical scans in a row '
+                f'(max_identical_scans {self.max_identical_scans}): its driver is frozen')
+        return None
+
+
+def scan_usable_fraction(ranges, angle_min: float, angle_max: float, angle_increment: float,
+                         range_min: float, range_max: float) -> float:
+    """
+    Return the fraction of a LaserScan's beams that gave a usable range, in [0, 1].
+
+    Usable (REP-117): finite within [range_min, range_max], or -inf (too close to
+    measure: the monitor takes it as range_min). +inf (no return within range_max), NaN
+    (an error) and finite ranges outside the limits are not. Raises ValueError for a
+    scan that is invalid: no beams, non-finite fields, range_min < 0 or range_max <=
+    range_min, angle_increment 0, angle_max not angle_min + (beams - 1) *
+    angle_increment (within one increment: drivers differ on whether angle_max is the
+    last beam or the end of its sector), or beams covering more than one turn.
+    """
+    try:
+        ranges = np.asarray(ranges, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        raise ValueError('ranges must be a sequence of numbers (m)') from None
+    beams = ranges.size
+    if beams == 0:
+        raise ValueError('the scan has no beams')
+    for name, value in (('angle_min', angle_min), ('angle_max', angle_max),
+                        ('angle_increment', angle_increment), ('range_min', range_min),
+                        ('range_max', range_max)):
+        _number(name, value)
+    if range_min < 0.0 or range_max <= range_min:
+        raise ValueError(f'range_min must be >= 0 and range_max > range_min, got '
+                         f'range_min {range_min!r}, range_max {range_max!r}')
+    if angle_increment == 0.0:
+        raise ValueError('angle_increment is 0')
+    last = angle_min + (beams - 1) * angle_increment
+    if abs(last - angle_max) > abs(angle_increment) * (1.0 + 1e-6):
+        raise ValueError(f'angle_max {angle_max:.6g} rad does not match angle_min '
+                         f'{angle_min:.6g} + ({beams} - 1) beams x angle_increment '
+                         f'{angle_increment:.6g} = {last:.6g} rad')
+    if (beams - 1) * abs(angle_increment) >= 2.0 * math.pi + abs(angle_increment) * 1e-6:
+        raise ValueError(f'{beams} beams of {angle_increment:.6g} rad cover more than one '
+                         'turn')
+    with np.errstate(invalid='ignore'):
+        usable = ((ranges >= range_min) & (ranges <= range_max)) | (ranges == -np.inf)
+    return float(np.count_nonzero(usable)) / beams
+
+
+class ScanRepeats:
+    """
+    Counts one source's scans equal to the one before (a frozen driver), once armed.
+
+    Call update() with every scan's ranges as it arrives. Ranges are compared exactly
+    (NaN equal to NaN). A real lidar's ranges carry noise, so consecutive scans differ
+    even while the robot stands; a noiseless one (the simulator with
+    sensor_noise_scale 0) repeats itself whenever the robot and the world stand still,
+    which is no fault. So repeats count only once the source has shown noise (armed,
+    for good): two consecutive scans whose differences, from beam to neighbouring beam,
+    change sign for at least NOISE_SIGN_CHANGE_FRACTION of the pairs of neighbours that
+    both changed (white noise: one half; motion of the robot or of a walker moves runs
+    of neighbouring beams the same way), among at least NOISE_MIN_PAIRS pairs. A lidar
+    frozen before it ever showed noise is not noticed.
+    """
+
+    def __init__(self) -> None:
+        """Start with no scan seen, not armed."""
+        self.previous: Optional[np.ndarray] = None
+        self.armed = False
+        self.count = 0
+
+    def update(self, ranges) -> int:
+        """Take the next scan's ranges; return how many scans in a row repeat (0 unarmed)."""
+        current = np.array(ranges, dtype=np.float64).ravel()
+        previous, self.previous = self.previous, current
+        if previous is not None and previous.shape == current.shape \
+                and np.array_equal(previous, current, equal_nan=True):
+            self.count = self.count + 1 if self.armed else 0
+            return self.count
+        self.count = 0
+        if not self.armed and previous is not None and previous.shape == current.shape:
+            self.armed = _noise_like(previous, current)
+        return 0
 
 
 def collision_time(zone: Zone, twist: Sequence[float], points: np.ndarray) -> Optional[float]:
@@ -338,6 +491,24 @@ def _lower(candidate: Twist2D, current: Twist2D) -> bool:
     if not math.isclose(speed_candidate, speed_current, rel_tol=0.0, abs_tol=1e-12):
         return speed_candidate < speed_current
     return abs(candidate[2]) < abs(current[2]) - 1e-12
+
+
+def _percent(fraction: float) -> str:
+    """Return a fraction as a percentage for messages ('49%')."""
+    return f'{100.0 * fraction:.0f}%' if math.isfinite(fraction) else repr(fraction)
+
+
+def _noise_like(previous: np.ndarray, current: np.ndarray) -> bool:
+    """Tell whether current differs from previous by noise (see ScanRepeats)."""
+    with np.errstate(invalid='ignore'):
+        change = current - previous
+    sign = np.sign(np.where(np.isfinite(change), change, 0.0))
+    both = (sign[:-1] != 0.0) & (sign[1:] != 0.0)
+    pairs = int(np.count_nonzero(both))
+    if pairs < NOISE_MIN_PAIRS:
+        return False
+    flips = int(np.count_nonzero(both & (sign[:-1] != sign[1:])))
+    return flips >= NOISE_SIGN_CHANGE_FRACTION * pairs
 
 
 def _finite_points(points) -> np.ndarray:

@@ -13,11 +13,21 @@ Observation sources (``observation_sources``, default ['scan']): ``SRC.type`` 's
 (the only one supported), ``SRC.topic`` ('scan'; sensor_msgs/LaserScan, sensor-data
 QoS), ``SRC.enabled``. The scan's frame is placed in ``base_frame_id`` ('base_link')
 with the latest transform from /tf_static (or /tf); -inf ranges (REP-117: too close)
-count as range_min. A source that has sent nothing, whose frame has no transform yet,
-or whose data is older than ``source_timeout`` (s, > 0; Nav2's 0 "no timeout" is not
-supported) stops the robot, with a throttled warning; the state names it
-'invalid source', as Nav2. ``transform_tolerance`` (s, >= 0) is accepted for Nav2
-parameter files: lookups here never wait, so it has no effect.
+count as range_min. ``transform_tolerance`` (s, >= 0) is accepted for Nav2 parameter
+files: lookups here never wait, so it has no effect.
+
+A source that cannot be trusted stops the robot, with a throttled warning saying why;
+the state says 'invalid source' (as Nav2), the source and what is wrong, e.g.
+"STOP invalid source: scan blinded". What is wrong (the rules are the core's): 'no
+data' (no LaserScan yet), 'no transform' (none for its frame yet), 'malformed' (no
+beams or inconsistent fields: angle_max not angle_min + (beams - 1) x angle_increment,
+range limits), 'stale' (stamp older than ``source_timeout``, s, > 0; Nav2's 0 "no
+timeout" is not supported), 'stamped in the future' (more than ``max_future_stamp_s``,
+s, >= 0, ahead of the node's clock), 'blinded' (fewer than ``min_valid_beam_fraction``,
+in [0, 1], of the beams usable: finite within [range_min, range_max], or -inf; 0: no
+check), 'frozen' (``max_identical_scans``, an integer >= 0, scans in a row equal to the
+one before, once the lidar has shown noise; 0: no check). Nothing is latched: as soon
+as the source's data is good again, commands pass.
 
 Zones (``polygons``, Nav2's format): ``NAME.type`` polygon | circle, ``NAME.points``
 (polygon vertices x1, y1, x2, y2, ... in m: a list, or Nav2 Jazzy's string
@@ -34,7 +44,7 @@ State: Nav2 publishes nav2_msgs/CollisionMonitorState, which this setup does not
 ``state_topic`` ('collision_monitor_state', '' for none) carries a std_msgs/String
 "ACTION polygon_name" instead, per command while subscribed, ACTION being Nav2's name of the action
 (DO_NOTHING, STOP, SLOWDOWN, APPROACH, LIMIT), e.g. "STOP PolygonStop",
-"STOP invalid source", "DO_NOTHING". Nav2's footprint_topic, velocity_polygon,
+"STOP invalid source: scan stale", "DO_NOTHING". Nav2's footprint_topic, velocity_polygon,
 base_shift_correction and stop_pub_timeout are not supported. ``/diagnostics``
 (diagnostic_msgs/DiagnosticArray, every second): the last decision, OK for DO_NOTHING,
 WARN for slowing (SLOWDOWN, APPROACH, LIMIT), ERROR for STOP, with its reason.
@@ -53,7 +63,8 @@ from mecanum_control.node_main import run_node
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
 from mecanum_safety.collision_monitor import (
-    CollisionMonitor, MonitorResult, scan_to_points, SourceData, ZERO, Zone)
+    CollisionMonitor, MonitorResult, scan_to_points, scan_usable_fraction, ScanRepeats,
+    SourceData, ZERO, Zone)
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
@@ -110,7 +121,7 @@ def zone_outline(zone: Zone) -> List[Tuple[float, float]]:
 
 
 class _Source:
-    """One observation source: its parameters and latest scan."""
+    """One observation source: its parameters, latest scan and that scan's health."""
 
     def __init__(self, name: str, topic: str, enabled: bool):
         self.name = name
@@ -120,11 +131,23 @@ class _Source:
         self.received = 0
         self.cache_key: Optional[tuple] = None
         self.points = np.zeros((0, 2))
+        self.repeats = ScanRepeats()
+        self.identical_scans = 0
+        self.usable_fraction = 0.0
+        self.invalid = ''
 
     def on_scan(self, msg: LaserScan) -> None:
-        """Keep the latest scan."""
+        """Keep the latest scan, how much of it is usable and how often it repeats."""
         self.scan = msg
         self.received += 1
+        self.identical_scans = self.repeats.update(msg.ranges)
+        try:
+            self.usable_fraction = scan_usable_fraction(
+                msg.ranges, msg.angle_min, msg.angle_max, msg.angle_increment,
+                msg.range_min, msg.range_max)
+            self.invalid = ''
+        except ValueError as error:
+            self.usable_fraction, self.invalid = 0.0, str(error)
 
 
 class CollisionMonitorNode(Node):
@@ -139,6 +162,10 @@ class CollisionMonitorNode(Node):
         state_topic = str(self.declare_parameter('state_topic', 'collision_monitor_state')
                           .value)
         source_timeout = self.declare_parameter('source_timeout', 2.0, dynamic).value
+        checks = {name: self.declare_parameter(name, default, dynamic).value
+                  for name, default in (('min_valid_beam_fraction', 0.5),
+                                        ('max_identical_scans', 5),
+                                        ('max_future_stamp_s', 0.1))}
         tolerance = self.declare_parameter('transform_tolerance', 0.1, dynamic).value
         if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) \
                 or not (math.isfinite(tolerance) and tolerance >= 0.0):
@@ -165,7 +192,7 @@ class CollisionMonitorNode(Node):
             if visualize and zone.enabled:
                 self.visualized.append(zone)
         try:
-            self.monitor = CollisionMonitor(zones, source_timeout)
+            self.monitor = CollisionMonitor(zones, source_timeout, **checks)
         except ValueError as error:
             raise ValueError(f'parameter {error}') from None
         self.sources = [self._declare_source(name) for name in source_names]
@@ -256,9 +283,9 @@ class CollisionMonitorNode(Node):
 
     def _source_data(self, now_s: float) -> Tuple[List[SourceData], str, str]:
         """
-        Return the enabled sources' points in base_frame_id, '', ''.
+        Return the enabled sources' data in base_frame_id, '', ''.
 
-        Or [], a warning key and why a source is unusable.
+        Or [], what is wrong with a source ('scan no data') and why it is unusable.
         """
         data = []
         for source in self.sources:
@@ -268,6 +295,9 @@ class CollisionMonitorNode(Node):
             if scan is None:
                 return [], f'{source.name} no data', (
                     f'source {source.name!r}: no LaserScan on {source.topic} yet')
+            if source.invalid:
+                return [], f'{source.name} malformed', (
+                    f'source {source.name!r}: invalid LaserScan: {source.invalid}')
             frame = scan.header.frame_id.lstrip('/') or self.base_frame_id
             try:
                 mount = self.frames.lookup(self.base_frame_id, frame)
@@ -283,11 +313,12 @@ class CollisionMonitorNode(Node):
                         scan.range_max, (mount.x, mount.y, mount.yaw),
                         too_close_as_range_min=True)
                 except ValueError as error:
-                    return [], f'{source.name} bad scan', (
-                        f'source {source.name!r}: unusable LaserScan: {error}')
+                    return [], f'{source.name} malformed', (
+                        f'source {source.name!r}: invalid LaserScan: {error}')
                 source.cache_key = cache_key
             data.append(SourceData(source.name, source.points,
-                                   now_s - stamp_to_s(scan.header.stamp)))
+                                   now_s - stamp_to_s(scan.header.stamp),
+                                   source.usable_fraction, source.identical_scans))
         return data, '', ''
 
     # -- commands -----------------------------------------------------------------------
@@ -300,15 +331,16 @@ class CollisionMonitorNode(Node):
             self._warn('command', f'non-finite command {command}: publishing zero')
             result, zone = MonitorResult(ZERO, 'stop'), INVALID_COMMAND
         else:
-            sources, key, problem = self._source_data(self._now_s())
+            sources, fault, problem = self._source_data(self._now_s())
             if problem:
-                self._warn(key, f'{problem}: stopping')
-                result, zone = MonitorResult(ZERO, 'stop', reason=problem), INVALID_SOURCE
+                result = MonitorResult(ZERO, 'stop', reason=f'{problem}: stopping',
+                                       fault=fault)
             else:
                 result = self.monitor.process(command, sources)
-                zone = result.zone or (INVALID_SOURCE if result.action == 'stop' else '')
-                if zone == INVALID_SOURCE:
-                    self._warn('stale', result.reason)
+            zone = result.zone
+            if not zone and result.action == 'stop':
+                zone = f'{INVALID_SOURCE}: {result.fault}' if result.fault else INVALID_SOURCE
+                self._warn(zone, result.reason)
         out = Twist()
         out.linear.x, out.linear.y, out.angular.z = (float(v) for v in result.twist)
         self.cmd_pub.publish(out)

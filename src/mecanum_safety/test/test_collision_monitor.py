@@ -3,7 +3,8 @@
 import math
 
 from mecanum_safety.collision_monitor import (
-    collision_time, CollisionMonitor, scan_to_points, SourceData, Zone)
+    collision_time, CollisionMonitor, scan_to_points, scan_usable_fraction, ScanRepeats,
+    SourceData, Zone)
 import numpy as np
 import pytest
 
@@ -264,3 +265,177 @@ def test_scan_to_points_by_hand():
     assert scan_to_points([12.0], 0.0, 0.1, 0.1, 10.0).shape == (0, 2)   # beyond range_max
     with pytest.raises(ValueError, match='angle_increment'):
         scan_to_points(ranges, 0.0, math.nan, 0.1, 10.0)
+
+
+# --- a bad lidar fails safe (issue 31) ------------------------------------------------
+
+def source(age_s=0.05, usable_fraction=1.0, identical_scans=0):
+    """Return one source with a point 3 m ahead and the given health."""
+    return [SourceData('scan', np.array([[3.0, 0.0]]), age_s,
+                       usable_fraction=usable_fraction, identical_scans=identical_scans)]
+
+
+def test_scan_usable_fraction_by_hand():
+    """
+    8 beams every pi/4 from 0 (angle_max 7 pi/4), range 0.1..10 m.
+
+    [1, inf, nan, -inf, 0.05, 12.5, 10, 0.1]: 1 m, -inf (too close, REP-117: taken as
+    range_min), 10 m and 0.1 m (the limits are included) are usable; +inf (no return),
+    NaN (an error), 0.05 m (below range_min) and 12.5 m (above range_max) are not: 4/8.
+    """
+    ranges = [1.0, math.inf, math.nan, -math.inf, 0.05, 12.5, 10.0, 0.1]
+    assert scan_usable_fraction(ranges, 0.0, 7 * math.pi / 4, math.pi / 4, 0.1, 10.0) == 0.5
+    assert scan_usable_fraction([math.inf] * 8, 0.0, 7 * math.pi / 4, math.pi / 4, 0.1,
+                                10.0) == 0.0
+    # Drivers that give angle_max one increment further (the end of the last beam's
+    # sector) are accepted; so is a decreasing scan.
+    assert scan_usable_fraction(ranges, 0.0, 2 * math.pi, math.pi / 4, 0.1, 10.0) == 0.5
+    assert scan_usable_fraction(ranges, 0.0, -7 * math.pi / 4, -math.pi / 4, 0.1,
+                                10.0) == 0.5
+
+
+@pytest.mark.parametrize('ranges, angles, limits, message', [
+    ([], (0.0, 0.0, 0.1), (0.1, 10.0), 'no beams'),
+    ([1.0] * 8, (0.0, math.pi, math.pi / 4), (0.1, 10.0), 'angle_max'),
+    ([1.0] * 8, (0.0, 7 * math.pi / 4, -math.pi / 4), (0.1, 10.0), 'angle_max'),
+    ([1.0] * 8, (0.0, 0.0, 0.0), (0.1, 10.0), 'angle_increment'),
+    ([1.0] * 8, (math.nan, 7 * math.pi / 4, math.pi / 4), (0.1, 10.0), 'angle_min'),
+    ([1.0] * 400, (0.0, 399 * 0.1, 0.1), (0.1, 10.0), 'more than one turn'),
+    ([1.0] * 8, (0.0, 7 * math.pi / 4, math.pi / 4), (0.1, 0.1), 'range_max'),
+    ([1.0] * 8, (0.0, 7 * math.pi / 4, math.pi / 4), (-0.1, 10.0), 'range_min'),
+])
+def test_scans_with_no_beams_or_inconsistent_fields_are_invalid(ranges, angles, limits,
+                                                                message):
+    """Each raises ValueError naming what is wrong."""
+    with pytest.raises(ValueError, match=message):
+        scan_usable_fraction(ranges, *angles, *limits)
+
+
+def test_a_blinded_source_stops_until_its_beams_return():
+    """
+    min_valid_beam_fraction 0.5: below half the beams usable, stop; half passes.
+
+    0.49 of the beams usable stops, naming the source and the fraction; 0.5 (not below
+    it) passes; so does the next good scan (no latch).
+    """
+    monitor = CollisionMonitor([STOP], min_valid_beam_fraction=0.5)
+    blind = monitor.process((0.3, 0.0, 0.0), source(usable_fraction=0.0))
+    assert (blind.twist, blind.action, blind.fault) == ((0.0, 0.0, 0.0), 'stop',
+                                                        'scan blinded')
+    assert "'scan'" in blind.reason and '0% of its beams' in blind.reason
+    assert monitor.process((0.3, 0.0, 0.0), source(usable_fraction=0.49)).action == 'stop'
+    assert '49%' in monitor.process((0.3, 0.0, 0.0), source(usable_fraction=0.49)).reason
+    good = monitor.process((0.3, 0.0, 0.0), source(usable_fraction=0.5))
+    assert (good.twist, good.action, good.fault) == ((0.3, 0.0, 0.0), 'none', '')
+    # 0 turns the check off.
+    assert CollisionMonitor([STOP], min_valid_beam_fraction=0.0).process(
+        (0.3, 0.0, 0.0), source(usable_fraction=0.0)).action == 'none'
+
+
+def test_a_frozen_source_stops_until_its_scans_change():
+    """max_identical_scans 5: 4 repeats pass, the 5th stops ('frozen'); 0 turns it off."""
+    monitor = CollisionMonitor([STOP], max_identical_scans=5)
+    assert monitor.process((0.3, 0.0, 0.0), source(identical_scans=4)).action == 'none'
+    frozen = monitor.process((0.3, 0.0, 0.0), source(identical_scans=5))
+    assert (frozen.twist, frozen.action, frozen.fault) == ((0.0, 0.0, 0.0), 'stop',
+                                                           'scan frozen')
+    assert "'scan'" in frozen.reason and '5 identical scans' in frozen.reason
+    assert monitor.process((0.3, 0.0, 0.0), source(identical_scans=0)).twist == \
+        (0.3, 0.0, 0.0)
+    assert CollisionMonitor([STOP], max_identical_scans=0).process(
+        (0.3, 0.0, 0.0), source(identical_scans=100)).action == 'none'
+
+
+def test_stamps_are_checked_both_ways():
+    """
+    source_timeout 0.5 s, max_future_stamp_s 0.1 s; age = now - stamp, signed.
+
+    -0.05 s (a stamp just ahead of our clock) and -0.1 s pass; -0.2 s stops as stamped
+    in the future, as 0.6 s stops as stale; a scan stamped now passes again (no latch).
+    """
+    monitor = CollisionMonitor([STOP], source_timeout=0.5, max_future_stamp_s=0.1)
+    assert monitor.process((0.3, 0.0, 0.0), source(age_s=-0.05)).action == 'none'
+    assert monitor.process((0.3, 0.0, 0.0), source(age_s=-0.1)).action == 'none'
+    future = monitor.process((0.3, 0.0, 0.0), source(age_s=-0.2))
+    assert (future.twist, future.action, future.fault) == (
+        (0.0, 0.0, 0.0), 'stop', 'scan stamped in the future')
+    assert "'scan'" in future.reason and '0.2 s in the future' in future.reason
+    stale = monitor.process((0.3, 0.0, 0.0), source(age_s=0.6))
+    assert (stale.action, stale.fault) == ('stop', 'scan stale')
+    assert monitor.process((0.3, 0.0, 0.0), source(age_s=0.0)).action == 'none'
+
+
+@pytest.mark.parametrize('kwargs, message', [
+    ({'min_valid_beam_fraction': 1.5}, 'min_valid_beam_fraction'),
+    ({'min_valid_beam_fraction': -0.1}, 'min_valid_beam_fraction'),
+    ({'max_identical_scans': -1}, 'max_identical_scans'),
+    ({'max_identical_scans': 2.5}, 'max_identical_scans'),
+    ({'max_identical_scans': True}, 'max_identical_scans'),
+    ({'max_future_stamp_s': -0.1}, 'max_future_stamp_s'),
+    ({'max_future_stamp_s': math.nan}, 'max_future_stamp_s'),
+])
+def test_monitor_rejects_bad_source_checks(kwargs, message):
+    """Each bad setting raises ValueError naming it."""
+    with pytest.raises(ValueError, match=message):
+        CollisionMonitor([STOP], **kwargs)
+
+
+BASE = np.full(40, 2.0, dtype=np.float32)
+#: 1 cm of alternating noise: the 39 neighbour pairs' differences all change sign.
+NOISY = BASE + np.float32(0.01) * np.where(np.arange(40) % 2, 1, -1).astype(np.float32)
+
+
+def test_scan_repeats_count_identical_scans_of_a_noisy_source():
+    """
+    A source that has shown noise: each scan equal to the one before counts one.
+
+    BASE then NOISY: the differences alternate in sign (39 of 39 neighbour pairs, >= a
+    quarter): noise, the check is armed; NOISY again 5 times: 1, 2, 3, 4, 5; a changed
+    scan: 0 again. NaN beams equal to NaN beams count as identical too.
+    """
+    repeats = ScanRepeats()
+    assert repeats.update(BASE) == 0 and not repeats.armed
+    assert repeats.update(NOISY) == 0 and repeats.armed
+    assert [repeats.update(NOISY.copy()) for _ in range(5)] == [1, 2, 3, 4, 5]
+    assert repeats.update(BASE) == 0
+    with_nan = BASE.copy()
+    with_nan[3] = np.nan
+    assert repeats.update(with_nan) == 0
+    assert repeats.update(with_nan.copy()) == 1
+
+
+def test_scan_repeats_of_a_noiseless_source_are_not_counted():
+    """
+    Repeats of a noiseless lidar are not a frozen driver.
+
+    A noiseless lidar (simulator with sensor_noise_scale 0) repeats itself while the
+    robot stands. Motion moves every range the same way
+    (BASE + 1 cm: 39 pairs, no sign change) and a walker changes a few neighbouring
+    beams (beams 10..14 by -1, -11, +1, -11, +1 cm: 3 sign changes in 4 pairs, but 4
+    pairs < 10): neither arms the check, so repeats count 0.
+    """
+    repeats = ScanRepeats()
+    walker = BASE + np.float32(0.01)
+    walker[10:15] = [2.0, 1.9, 2.02, 1.9, 2.02]
+    for ranges in (BASE, BASE + np.float32(0.01), BASE + np.float32(0.01), walker, walker):
+        assert repeats.update(ranges) == 0
+    assert not repeats.armed
+    # A scan of another length is a new scan, never a repeat.
+    assert repeats.update(np.full(20, 2.0)) == 0
+
+
+@pytest.mark.parametrize('block, armed', [(3, True), (4, False)])
+def test_scan_repeats_arm_on_a_quarter_of_sign_changes(block, armed):
+    """
+    40 beams moved by +-1 cm in blocks of equal sign: 39 neighbour pairs.
+
+    Blocks of 3 change sign 13 times (13 / 39 = 0.33 >= 0.25: noise, armed); blocks of
+    4 change it 9 times (9 / 39 = 0.23 < 0.25: not noise, the repeats do not count).
+    """
+    signs = np.where((np.arange(40) // block) % 2, 1.0, -1.0)
+    repeats = ScanRepeats()
+    repeats.update(BASE)
+    moved = BASE + (0.01 * signs).astype(np.float32)
+    repeats.update(moved)
+    assert repeats.armed == armed
+    assert repeats.update(moved.copy()) == (1 if armed else 0)
