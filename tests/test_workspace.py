@@ -9,6 +9,7 @@ from catkin_pkg.package import parse_package
 from mecanum_bringup.launch_runner import find_executable
 from mecanum_bringup.system_description import load_system
 import pytest
+import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGES = sorted(p.parent.name for p in (REPO / 'src').glob('*/package.xml'))
@@ -74,6 +75,70 @@ def test_robot_launch_chooses_robot_and_localisation(arguments, expected):
         assert absent not in labels
     assert {'ekf_filter_node', 'robot_state_publisher', 'velocity_smoother',
             'collision_monitor', 'motor_controller'} <= set(labels)
+
+
+def _zone_guard_parameter(system, name):
+    """Return the last override of parameter name given to the zone_guard node."""
+    guards = [node for node in system.nodes if node.label == 'zone_guard']
+    assert len(guards) == 1, [node.label for node in system.nodes]
+    values = [value for item in guards[0].parameters if isinstance(item, tuple)
+              for key, value in [item] if key == name]
+    return values[-1] if values else None
+
+
+@pytest.mark.parametrize('arguments, topic', [
+    ({}, 'amcl_pose'),
+    ({'slam': 'true'}, 'pose'),
+    ({'sim': 'false'}, 'amcl_pose'),
+    ({'sim': 'false', 'slam': 'true'}, 'pose'),
+])
+def test_the_zone_guard_hears_the_localisation_in_use(arguments, topic):
+    """The guard hears amcl_pose from amcl, pose from SLAM (slam_toolbox): margin, health."""
+    system = load_system(REPO / 'src/mecanum_bringup/launch/robot.launch.yaml', arguments)
+    assert _zone_guard_parameter(system, 'pose_covariance_topic') == topic
+
+
+@pytest.mark.parametrize('launch_file, arguments, required', [
+    ('mecanum_bringup/launch/real_robot.launch.yaml', {}, True),
+    ('mecanum_bringup/launch/robot.launch.yaml', {'sim': 'false'}, True),
+    ('mecanum_bringup/launch/robot.launch.yaml', {}, False),
+    ('mecanum_bringup/launch/simulation.launch.yaml', {}, False),
+    ('mecanum_safety/launch/command_chain.launch.yaml', {}, False),
+])
+def test_the_real_robot_does_not_drive_without_a_zone_file(launch_file, arguments, required):
+    """With zone_file '' the real robot's zone guard stops every command; the simulation's not."""
+    system = load_system(REPO / 'src' / launch_file, arguments)
+    assert _zone_guard_parameter(system, 'zone_file') == ''
+    assert _zone_guard_parameter(system, 'require_zone') is required
+
+
+def test_the_zone_guard_file_leaves_the_launch_parameters_to_the_launch_files():
+    """
+    zone_guard.yaml sets none of the parameters command_chain.launch.yaml gives.
+
+    A launch override ({name, value}) goes under /** in the pip setup, which rclpy reads
+    before the node's own section: zone_guard.yaml setting one would silently win.
+    """
+    params = yaml.safe_load((REPO / 'src/mecanum_safety/config/zone_guard.yaml').read_text())
+    system = load_system(REPO / 'src/mecanum_safety/launch/command_chain.launch.yaml')
+    given = {item[0] for node in system.nodes if node.label == 'zone_guard'
+             for item in node.parameters if isinstance(item, tuple)}
+    assert {'zone_file', 'require_zone', 'pose_covariance_topic'} <= given
+    assert not given & set(params['zone_guard']['ros__parameters'])
+
+
+def test_zone_file_unrestricted_reaches_every_reader_of_the_zone():
+    """zone_file:=unrestricted is how the real robot drives without a zone, on purpose."""
+    system = load_system(REPO / 'src/mecanum_bringup/launch/robot.launch.yaml',
+                         {'sim': 'false', 'zone_file': 'unrestricted'})
+    readers = [node for node in system.nodes
+               if any(isinstance(item, tuple) and item[0] == 'zone_file'
+                      for item in node.parameters)]
+    assert {node.label for node in readers} == {'zone_guard', 'navigator', 'robot_controller'}
+    for node in readers:
+        assert [value for key, value in (item for item in node.parameters
+                                         if isinstance(item, tuple))
+                if key == 'zone_file'][-1] == 'unrestricted'
 
 
 def test_installed_executables_run_directly():

@@ -7,6 +7,12 @@ with its covariance, and commands on cmd_vel_monitored about every 50 ms; it rec
 cmd_vel_safe, zone_guard_state and /diagnostics. The zone is a 4 m square written into a zone file;
 the expected twists are what the pure core computes for the same pose (its own tests
 work the numbers out by hand: 1 m from the border, 0.75 m of travel is allowed).
+Further tests: an unhealthy localisation (NaN, a covariance not symmetric positive
+semi-definite, a sigma above max_position_sigma_m) stops all but turning on the spot,
+also heard from SLAM's volatile pose topic; outside the zone only motion back in
+passes; a pose stamped in the future is not trusted; with require_zone an empty
+zone_file stops everything, and zone_file:=unrestricted is no zone (for robot_controller
+and the navigator too).
 """
 
 import math
@@ -41,9 +47,11 @@ SQUARE = 'authorised_zone:\n  include: [[0, 0], [4, 0], [4, 4], [0, 4]]\n'
 MAP_TO_ODOM = PlanarTransform(0.5, -0.3, 0.4)
 #: amcl future-dates map -> odom by its transform_tolerance.
 AMCL_TOLERANCE_S = 0.5
+#: The guard's pose_covariance_topic by default (amcl's; command_chain.launch passes it).
+AMCL_POSE = 'amcl_pose'
 
 
-def write_launch(directory: Path, zone_file: str) -> Path:
+def write_launch(directory: Path, zone_file: str, extra_nodes=(), **parameters) -> Path:
     """Write the test system: the zone guard alone, as command_chain.launch.yaml starts it."""
     launch = {'launch': [
         {'node': {'pkg': 'mecanum_safety', 'exec': 'zone_guard', 'name': 'zone_guard',
@@ -51,7 +59,9 @@ def write_launch(directory: Path, zone_file: str) -> Path:
                       {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
                       {'from': '$(find-pkg-share mecanum_safety)/config/zone_guard.yaml'},
                       {'name': 'zone_file', 'value': zone_file},
-                      {'name': 'use_sim_time', 'value': True}]}},
+                      {'name': 'use_sim_time', 'value': True}] + [
+                      {'name': name, 'value': value} for name, value in parameters.items()]}},
+        *extra_nodes,
     ]}
     path = directory / 'zone_guard_test.launch.yaml'
     path.write_text(yaml.safe_dump(launch, sort_keys=False))
@@ -80,27 +90,36 @@ class Robot(LoopThread):
         self.cmd_pub = node.create_publisher(Twist, PARAMS['cmd_vel_in_topic'], 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.covariance_pub = node.create_publisher(
-            PoseWithCovarianceStamped, PARAMS['pose_covariance_topic'], latched)
+            PoseWithCovarianceStamped, AMCL_POSE, latched)
         self.pose = None            # (x, y, yaw) of base_link in map; None: no /tf
         self.ekf = True             # publish odom -> base_link
+        self.future_s = 0.0         # stamp every transform this far in the future (s)
         self.command = None
         self.last_ekf_stamp_s = math.nan
         super().__init__()
 
-    def publish_sigma(self, sigma_m):
+    def publish_sigma(self, sigma_m, publisher=None):
         """Publish amcl_pose with position standard deviations sigma_m along y, half along x."""
-        msg = PoseWithCovarianceStamped()
-        msg.header.frame_id = 'map'
         covariance = [0.0] * 36
         covariance[0], covariance[7], covariance[35] = (sigma_m / 2) ** 2, sigma_m ** 2, 0.01
-        msg.pose.covariance = covariance
-        self.covariance_pub.publish(msg)
+        self.publish_covariance(covariance, publisher=publisher)
+
+    def publish_covariance(self, covariance, position=(0.0, 0.0, 0.0), publisher=None):
+        """Publish a pose with covariance (on amcl_pose unless publisher is given)."""
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = 'map'
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self.test_node.clock_ns,
+                                                                10 ** 9)
+        msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = (
+            float(v) for v in position)
+        msg.pose.covariance = [float(v) for v in covariance]
+        (publisher or self.covariance_pub).publish(msg)
 
     def _run(self):
         while not self._stop.is_set():
             pose = self.pose
             if pose is not None:
-                now_ns = self.test_node.clock_ns
+                now_ns = self.test_node.clock_ns + int(self.future_s * 1e9)
                 future_ns = now_ns + int(AMCL_TOLERANCE_S * 1e9)
                 transforms = [transform('map', 'odom', MAP_TO_ODOM, future_ns)]
                 if self.ekf:
@@ -262,6 +281,8 @@ def test_without_a_zone_every_command_passes(start_system, test_node, tmp_path):
     (['-p', 'horizon_s:=-1.0'], r'parameter horizon_s must be a finite number > 0'),
     (['-p', 'margin_m:=0.6'], r'parameter max_margin_m \(0.5\) must be >= margin_m \(0.6\)'),
     (['-p', 'pose_timeout_s:=0.0'], r'parameter pose_timeout_s must be a finite number > 0'),
+    (['-p', 'max_position_sigma_m:=0.0'],
+     r'parameter max_position_sigma_m must be a finite number > 0'),
     (['-p', 'zone_file:=/nonexistent/zone.yaml'],
      r'parameter zone_file: /nonexistent/zone.yaml: cannot read the zone file'),
 ])
@@ -273,3 +294,182 @@ def test_bad_parameters_stop_the_node_with_a_clear_message(ros_env, arguments, m
     assert result.returncode == 2, output
     assert 'Traceback' not in output
     assert re.search(r'\[FATAL\].*' + message, output), output
+
+
+# --- the localisation's health, outside the zone, future-dated poses, zone files ---------
+
+MAX_SIGMA = PARAMS['max_position_sigma_m']
+
+
+def covariance36(xx, xy, yx, yy):
+    """Return a 6x6 row-major pose covariance with this x-y block (yaw variance 0.01)."""
+    values = [0.0] * 36
+    values[0], values[1], values[6], values[7], values[35] = xx, xy, yx, yy, 0.01
+    return values
+
+
+def start_guard(start_system, test_node, tmp_path, zone_file=None, **parameters):
+    """Start the zone guard in the 4 m square (zone_file None) and the robot at (2, 2)."""
+    if zone_file is None:
+        zone_file = tmp_path / 'zone.yaml'
+        zone_file.write_text(SQUARE)
+    test_node.start_clock()
+    recorders = (test_node.record(Twist, PARAMS['cmd_vel_out_topic']),
+                 test_node.record(String, PARAMS['state_topic']),
+                 test_node.record(DiagnosticArray, '/diagnostics'))
+    system = start_system(str(write_launch(tmp_path, str(zone_file), **parameters)))
+    system.wait_for_line(r'\[zone_guard\].*Zone guard started')
+    robot = Robot(test_node)
+    robot.pose = (2.0, 2.0, 0.0)
+    robot.start()
+    return (system, robot, *recorders)
+
+
+def test_an_unhealthy_localisation_stops_all_but_turning_until_healthy(
+        start_system, test_node, tmp_path):
+    system, robot, out, state, diagnostics = start_guard(start_system, test_node, tmp_path)
+    try:
+        robot.publish_sigma(0.03)                        # amcl's usual: healthy
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+
+        # NaN in the covariance: stopped, the state and the log say why.
+        robot.publish_covariance([math.nan] * 36)
+        settle(out, state, (0.0, 0.0, 0.0),
+               'STOP localisation unhealthy: NaN/inf in the covariance (36 of 36 values)')
+        system.wait_for_line(r'\[WARN\].*localisation unhealthy \(/amcl_pose\): NaN/inf in '
+                             r'the covariance .*stopping every motion but turning on the spot')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.ERROR, 'STOP localisation unhealthy')
+        # Turning on the spot passes (it moves no footprint, and lets amcl update).
+        robot.command = (0.0, 0.0, 0.5)
+        settle(out, state, (0.0, 0.0, 0.5),
+               'ALLOW turning on the spot (localisation unhealthy: NaN/inf in the covariance')
+        robot.command = (0.0, 0.0, 0.0)
+        settle(out, state, (0.0, 0.0, 0.0),
+               'ALLOW zero command (localisation unhealthy: NaN/inf in the covariance)')
+
+        robot.command = (0.3, 0.0, 0.0)
+        for covariance, position, why in [
+                (covariance36(0.16, 0.0, 0.0, 0.01), (0.0, 0.0, 0.0),
+                 f'position sigma 0.40 m > max_position_sigma_m {MAX_SIGMA:g} m'),
+                (covariance36(0.01, 0.02, 0.02, 0.01), (0.0, 0.0, 0.0),
+                 'covariance not positive semi-definite (eigenvalue -0.01)'),
+                (covariance36(0.01, 0.002, 0.0, 0.01), (0.0, 0.0, 0.0),
+                 'covariance not symmetric'),
+                (covariance36(0.001, 0.0, 0.0, 0.001), (math.nan, 2.0, 0.0),
+                 'NaN/inf in the pose')]:
+            robot.publish_covariance(covariance, position)
+            settle(out, state, (0.0, 0.0, 0.0), f'STOP localisation unhealthy: {why}')
+
+        # Healthy values again: commands pass.
+        robot.publish_sigma(0.03)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+        system.wait_for_line(r'\[INFO\].*localisation healthy again \(/amcl_pose\)')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+def test_slams_volatile_pose_topic_is_heard(start_system, test_node, tmp_path):
+    """slam_toolbox publishes pose volatile: a transient-local subscription hears nothing."""
+    system, robot, out, state, _ = start_guard(start_system, test_node, tmp_path,
+                                               pose_covariance_topic='pose')
+    slam = test_node.node.create_publisher(PoseWithCovarianceStamped, 'pose', 10)
+    try:
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+        deadline = time.monotonic() + 20.0      # volatile: publish once it is matched
+        while slam.get_subscription_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert slam.get_subscription_count() >= 1
+        robot.publish_sigma(0.4, publisher=slam)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP localisation unhealthy: position sigma 0.40')
+        robot.publish_sigma(0.0, publisher=slam)      # SLAM's own: zeros
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+    finally:
+        robot.stop()
+    output = system.output()
+    assert 'Traceback' not in output and 'incompatible' not in output.lower()
+
+
+def test_outside_the_zone_only_motion_back_in_passes(start_system, test_node, tmp_path):
+    system, robot, out, state, diagnostics = start_guard(start_system, test_node, tmp_path)
+    robot.pose = (4.1, 2.0, 0.0)                     # the centre 0.1 m out of x = 4
+    try:
+        for command in [(0.0, 0.3, 0.0), (0.3, 0.0, 0.0), (-0.02, 0.4, 0.0)]:
+            robot.command = command                  # along, out, nearly along
+            settle(out, state, (0.0, 0.0, 0.0), 'STOP outside the zone')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.ERROR, 'STOP outside the zone')
+        for command in [(-0.3, 0.0, 0.0), (-0.2, 0.3, 0.0)]:
+            robot.command = command
+            settle(out, state, command, 'ALLOW back into the zone')
+        robot.command = (0.0, 0.0, 1.0)
+        settle(out, state, (0.0, 0.0, 1.0), 'ALLOW turning on the spot outside the zone')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+def test_a_pose_stamped_in_the_future_is_not_trusted(start_system, test_node, tmp_path):
+    """Stamped 2 s ahead, a pose would stay "fresh" 2 s after its publisher stopped."""
+    system, robot, out, state, _ = start_guard(start_system, test_node, tmp_path)
+    try:
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+        robot.future_s = 2.0
+        settle(out, state, (0.0, 0.0, 0.0),
+               'STOP no pose: map -> base_link stamped in the future (clock mismatch?)')
+        system.wait_for_line(r'\[WARN\].*map -> base_link is stamped [0-9.]+ s in the future')
+        robot.future_s = 0.0                          # once the clock has caught up: fresh
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+def test_with_require_zone_an_empty_zone_file_stops_everything(start_system, test_node,
+                                                               tmp_path):
+    """The real robot (real_robot.launch sets require_zone) never drives without a zone."""
+    system, robot, out, state, diagnostics = start_guard(
+        start_system, test_node, tmp_path, zone_file='', require_zone=True)
+    try:
+        system.wait_for_line(r'\[ERROR\].*zone_file is empty and require_zone is true.*'
+                             r'zone_file:=unrestricted')
+        for command in [(0.3, 0.0, 0.0), (0.0, 0.0, 1.0)]:
+            robot.command = command
+            settle(out, state, (0.0, 0.0, 0.0), 'STOP no zone file: give zone_file:=<zone '
+                   'file> (see mecanum_safety/zones) or zone_file:=unrestricted')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.ERROR, 'STOP no zone file')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+def test_zone_file_unrestricted_is_no_zone_on_purpose(start_system, test_node, tmp_path):
+    controller = {'node': {
+        'pkg': 'robot_controller', 'exec': 'robot_control_node', 'name': 'robot_controller',
+        'param': [{'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
+                  {'from': '$(find-pkg-share robot_controller)/config/robot_controller.yaml'},
+                  {'name': 'zone_file', 'value': 'unrestricted'},
+                  {'name': 'use_sim_time', 'value': True}]}}
+    test_node.start_clock()
+    out = test_node.record(Twist, PARAMS['cmd_vel_out_topic'])
+    state = test_node.record(String, PARAMS['state_topic'])
+    system = start_system(str(write_launch(tmp_path, 'unrestricted', [controller],
+                                           require_zone=True)))
+    system.wait_for_line(r'\[zone_guard\].*Zone guard started.*zone_file:=unrestricted')
+    system.wait_for_line(r'\[robot_controller\].*Robot controller ready.*no authorised zone')
+    robot = Robot(test_node)            # no /tf at all: no pose needed
+    robot.start()
+    try:
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW unrestricted (no zone)')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()
+
+
+def test_the_navigator_reads_unrestricted_as_no_zone():
+    from mecanum_navigation.navigator.navigator_node import NavigatorNode
+    assert NavigatorNode._load_zone('unrestricted') is None
+    assert NavigatorNode._load_zone('') is None

@@ -8,8 +8,14 @@ prints the board's status, faults, battery, encoder ticks and IMU. With ``--spin
 it then turns that wheel at ``--duty`` for ``--spin-seconds`` and says which way it
 counted, in counts and wheel turns (counts per turn from the robot config).
 
+The port is opened for this program alone (:func:`open_exclusive`: an exclusive
+flock, which hardware_interface takes too): while the robot's stack holds the board,
+board_check is refused with a message naming the program holding it, and the other way
+round, so two programs never send efforts to the motors at once.
+
 Exit code: 0 if the board answered in protocol v1 with no fault but those it was told
-about, and the spun wheel counted forward; 1 otherwise; 2 if nothing answered.
+about, and the spun wheel counted forward; 1 otherwise; 2 if nothing answered or the port
+could not be opened (absent, or held by another program).
 
 Example::
 
@@ -17,6 +23,7 @@ Example::
 """
 
 import argparse
+import errno
 import os
 from pathlib import Path
 import select
@@ -30,6 +37,68 @@ from mecanum_control.robot_config import (
 
 WHEELS = ('FL', 'FR', 'RL', 'RR')
 COMMAND_PERIOD_S = 0.02
+
+
+class PortInUse(OSError):
+    """The serial port is held (exclusive lock) by another program; str() names it."""
+
+
+def open_exclusive(port: str, baud: int, **options):
+    """
+    Open the board's serial port for this program alone; return the serial.Serial.
+
+    pyserial's ``exclusive=True`` takes flock(LOCK_EX | LOCK_NB) on the device right
+    after open(), before it changes any line setting; the kernel drops the lock when the
+    port is closed or the program dies. Raises PortInUse naming the program that holds
+    it (from /proc/locks), serial.SerialException or OSError for other failures.
+    """
+    import serial
+    try:
+        return serial.Serial(port, baud, exclusive=True, **options)
+    except serial.SerialException as error:
+        if error.errno not in (errno.EAGAIN, errno.EWOULDBLOCK):
+            raise
+        holder = lock_holder(port)
+        raise PortInUse(f'another program holds it ({holder or "which one is unknown"})'
+                        ) from None
+
+
+def lock_holder(path: str) -> str:
+    """Return 'pid N: program' of the process holding a flock on path, or ''."""
+    try:
+        status = os.stat(path)
+        with open('/proc/locks', encoding='ascii', errors='replace') as locks:
+            lines = locks.readlines()
+    except OSError:
+        return ''
+    # '1: FLOCK  ADVISORY  WRITE 10560 00:1a:3 0 EOF' (device major:minor in hex,
+    # inode); lines of waiting processes read '1: -> FLOCK ...'.
+    key = f'{os.major(status.st_dev):02x}:{os.minor(status.st_dev):02x}:{status.st_ino}'
+    for line in lines:
+        fields = line.split()
+        if len(fields) >= 6 and fields[1] == 'FLOCK' and fields[5] == key:
+            pid = fields[4]
+            if not pid.isdigit() or int(pid) <= 0:
+                return 'a process outside this PID namespace'
+            return f'pid {pid}: {program_name(int(pid))}'
+    return ''
+
+
+def program_name(pid: int) -> str:
+    """Return a short name of a process's program (the script or module, not 'python')."""
+    try:
+        with open(f'/proc/{pid}/cmdline', 'rb') as cmdline:
+            args = [arg.decode(errors='replace') for arg in cmdline.read().split(b'\0') if arg]
+    except OSError:
+        return 'unknown program'
+    if not args:
+        return 'unknown program'
+    if os.path.basename(args[0]).startswith('python') and len(args) > 1:
+        args = args[1:]
+        if args[0] == '-m' and len(args) > 1:
+            return args[1]
+        args = [arg for arg in args if not arg.startswith('-')] or args
+    return os.path.basename(args[0])
 
 
 class BoardSession:
@@ -185,7 +254,12 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 2
     import serial
     try:
-        line = serial.Serial(args.port, args.baud, timeout=0)
+        line = open_exclusive(args.port, args.baud, timeout=0)
+    except PortInUse as error:
+        print(f'board_check: cannot open {args.port}: {error}; stop it first (the robot '
+              'stack, or another board_check): one program at a time drives the board',
+              file=sys.stderr)
+        return 2
     except (OSError, ValueError, serial.SerialException) as error:
         print(f'board_check: cannot open {args.port}: {error}', file=sys.stderr)
         return 2

@@ -7,15 +7,22 @@ the caller uses consistently.
 
 Pipeline of ``MotorCommandCore``:
 
-1. ``validate_twist``: non-finite or absurd components reject the whole command
-   (and zero the target); otherwise each component is clamped to its max_velocity.
-2. The target is scaled down as a whole (direction kept) until no wheel exceeds
-   max_wheel_speed_rad_s. Doing this *before* rate limiting keeps the rate limiter's
-   state equal to what the wheels really do, so acceleration limits hold on the real
-   output: the set of reachable twists is convex and the rate limiter moves on the
-   straight line from its current twist toward the target.
-3. ``RateLimiter``: per-axis acceleration limits.
-4. ``inverse_kinematics`` then ``desaturate`` (a safety net; a no-op up to rounding).
+1. ``limit_twist``: non-finite or absurd components reject the whole command (and
+   zero the target, see ``validate_twist``); otherwise the twist is scaled down as a
+   whole (direction kept) until each axis is within its max_velocity and no wheel
+   exceeds max_wheel_speed_rad_s. Doing this *before* rate limiting keeps the rate
+   limiter's state equal to what the wheels really do, so acceleration limits hold on
+   the real output: the set of reachable twists is convex and the rate limiter moves
+   on the straight line from its current twist toward the target.
+2. ``RateLimiter``: per-axis acceleration limits.
+3. ``inverse_kinematics`` then ``desaturate`` (a safety net; a no-op up to rounding).
+
+``limit_twist`` is the robot's one velocity limit: twist_mux, the first stage of the
+command chain (mecanum_safety), applies it to every twist it forwards, so that the
+collision monitor and the zone guard judge the twist the wheels will run, and
+motor_controller's own limiting is a no-op on the chain's output (it is idempotent).
+Clamping each axis on its own would turn the direction of motion instead (an
+over-limit diagonal would run at another angle than the one the chain judged).
 
 E-stop zeroes the output at once; a command timeout only zeroes the target, so the
 robot decelerates with the acceleration limits (smooth, like diff_drive_controller).
@@ -82,6 +89,15 @@ class TwistLimits:
         """Return the axis limits in the order (x, y, wz)."""
         return self.x, self.y, self.wz
 
+    @classmethod
+    def from_config(cls, config, absurd_factor: float = 10.0) -> 'TwistLimits':
+        """Return the limits of a robot_config.RobotConfig (motor_params.yaml)."""
+        return cls(x=AxisLimits(config.max_velocity_x_m_s, config.max_acceleration_x_m_s2),
+                   y=AxisLimits(config.max_velocity_y_m_s, config.max_acceleration_y_m_s2),
+                   wz=AxisLimits(config.max_angular_velocity_rad_s,
+                                 config.max_angular_acceleration_rad_s2),
+                   absurd_factor=absurd_factor)
+
 
 class CommandRejected(ValueError):
     """A velocity command that must not be executed (non-finite or absurd)."""
@@ -89,11 +105,12 @@ class CommandRejected(ValueError):
 
 def validate_twist(vx: float, vy: float, wz: float, limits: TwistLimits) -> Twist2D:
     """
-    Check a commanded twist (m/s, m/s, rad/s) and clamp it to the velocity limits.
+    Check a commanded twist (m/s, m/s, rad/s); return it unchanged, as floats.
 
     Raises CommandRejected naming the axis for a nan/inf component, or for one whose
-    magnitude exceeds absurd_factor * max_velocity. Otherwise returns each component
-    clamped to +-max_velocity.
+    magnitude exceeds absurd_factor * max_velocity (garbage, not a command to scale
+    down). Limiting is limit_twist's job: it keeps the direction, per-axis clamping
+    would not.
     """
     result = []
     for value, axis, name, unit in zip((vx, vy, wz), limits.axes, AXIS_NAMES, AXIS_UNITS):
@@ -105,8 +122,52 @@ def validate_twist(vx: float, vy: float, wz: float, limits: TwistLimits) -> Twis
             raise CommandRejected(
                 f'{name} = {value:g} {unit} is absurd: beyond {limits.absurd_factor:g} x '
                 f'max_velocity {axis.max_velocity:g} {unit} = {bound:g} {unit}')
-        result.append(max(-axis.max_velocity, min(axis.max_velocity, value)))
+        result.append(value)
     return result[0], result[1], result[2]
+
+
+#: A twist at most this much (relative) over a limit counts as within it, so that
+#: limiting a twist that was already limited (rounding included) changes nothing.
+LIMIT_TOLERANCE = 1e-9
+
+
+def limit_scale(twist: Twist2D, limits: TwistLimits, geometry: MecanumGeometry,
+                max_wheel_speed_rad_s: float) -> float:
+    """
+    Return the factor s in (0, 1] that brings twist (m/s, m/s, rad/s) within the limits.
+
+    s * twist has each axis within its max_velocity and no wheel beyond
+    max_wheel_speed_rad_s: the most limiting of those ratios, 1 when none limits.
+    Raises CommandRejected as validate_twist (non-finite or absurd twist) and
+    ValueError for a max_wheel_speed_rad_s that is not finite and > 0.
+    """
+    if not (math.isfinite(max_wheel_speed_rad_s) and max_wheel_speed_rad_s > 0.0):
+        raise ValueError(
+            f'max_wheel_speed_rad_s must be finite and > 0, got {max_wheel_speed_rad_s!r}')
+    vx, vy, wz = validate_twist(*twist, limits)
+    ratios = [axis.max_velocity / abs(value)
+              for value, axis in zip((vx, vy, wz), limits.axes) if value != 0.0]
+    peak = max(abs(w) for w in inverse_kinematics(geometry, vx, vy, wz))
+    if peak > 0.0:
+        ratios.append(max_wheel_speed_rad_s / peak)
+    scale = min(ratios, default=1.0)
+    return 1.0 if scale >= 1.0 - LIMIT_TOLERANCE else scale
+
+
+def limit_twist(twist: Twist2D, limits: TwistLimits, geometry: MecanumGeometry,
+                max_wheel_speed_rad_s: float) -> Twist2D:
+    """
+    Return twist (m/s, m/s, rad/s) scaled down as a whole to the robot's limits.
+
+    The direction of motion (and the ratio of translation to rotation) is kept: the
+    result is limit_scale(...) * twist, unchanged (as floats) when within the limits,
+    so limiting twice changes nothing. Raises as limit_scale.
+    """
+    scale = limit_scale(twist, limits, geometry, max_wheel_speed_rad_s)
+    vx, vy, wz = (float(v) for v in twist)
+    if scale == 1.0:
+        return vx, vy, wz
+    return scale * vx, scale * vy, scale * wz
 
 
 class RateLimiter:
@@ -162,17 +223,35 @@ class RateLimiter:
 
 
 class EmergencyStop:
-    """Latching emergency stop: stays engaged until release() is called."""
+    """
+    Latching emergency stop: stays engaged until release() is called.
+
+    Its input (the e-stop button, the emergency_stop topic) engages it when pressed;
+    letting go of the button does not release it, and release() is refused while the
+    button is still pressed (a reset needs the button let go first, as ISO 13850).
+    """
 
     def __init__(self) -> None:
         """Create a released e-stop."""
         self._engaged = False
+        self._pressed = False
         self._reason = ''
 
     @property
     def engaged(self) -> bool:
         """Return True while engaged."""
         return self._engaged
+
+    @property
+    def pressed(self) -> bool:
+        """Return True while the input's last value was true."""
+        return self._pressed
+
+    def set_pressed(self, pressed: bool, reason: str) -> None:
+        """Take the input's value: true engages (with reason); false only lets go."""
+        self._pressed = bool(pressed)
+        if self._pressed:
+            self.engage(reason)
 
     @property
     def reason(self) -> str:
@@ -185,10 +264,13 @@ class EmergencyStop:
             self._engaged = True
             self._reason = str(reason)
 
-    def release(self) -> None:
-        """Release the latch."""
+    def release(self) -> bool:
+        """Release the latch and return True; refused (False) while the input is pressed."""
+        if self._pressed:
+            return False
         self._engaged = False
         self._reason = ''
+        return True
 
 
 class CommandWatchdog:
@@ -246,7 +328,7 @@ class MotorCommandState:
     Snapshot of MotorCommandCore for diagnostics.
 
     status: 'ok', 'timeout', 'estop' or 'waiting' (no command yet, or none since
-    the e-stop was released). target_twist: validated, desaturated target
+    the e-stop was released). target_twist: validated target, limited by limit_twist
     (m/s, m/s, rad/s); limited_twist: the twist commanded after rate limiting;
     wheel_speeds: rad/s FL, FR, RL, RR; estop_reason: '' when released.
     """
@@ -266,8 +348,9 @@ class MotorCommandCore:
     same clock. Decisions: a rejected command zeroes the target before raising; a
     command timeout zeroes the target and the robot decelerates with the
     acceleration limits; the e-stop zeroes the output immediately (bypassing the
-    limits), commands are ignored while engaged, and after release the target stays
-    zero until a new command arrives (the old command is not resumed).
+    limits), commands are ignored while engaged, a release is refused while the
+    e-stop input is still pressed, and after release the target stays zero until a
+    new command arrives (the old command is not resumed).
     """
 
     def __init__(self, geometry: MecanumGeometry, limits: TwistLimits,
@@ -296,13 +379,14 @@ class MotorCommandCore:
         component. Ignored while the e-stop is engaged.
         """
         try:
-            twist = validate_twist(vx, vy, wz, self._limits)
+            twist = limit_twist((vx, vy, wz), self._limits, self._geometry,
+                                self._max_wheel_speed)
         except CommandRejected:
             self._target = ZERO_TWIST
             raise
         if self._estop.engaged:
             return
-        self._target = self._desaturate_twist(twist)
+        self._target = twist
         self._watchdog.feed(now_s)
         self._has_command = True
         self._status = STATUS_OK
@@ -313,12 +397,34 @@ class MotorCommandCore:
         self._stop_now()
         self._status = STATUS_ESTOP
 
-    def release_estop(self) -> None:
-        """Release the e-stop; the output stays zero until a new command arrives."""
+    def set_estop_input(self, pressed: bool, reason: str = 'emergency_stop topic') -> bool:
+        """
+        Take the e-stop input's value; return True when it engaged the stop just now.
+
+        True engages the latching stop (as engage_estop); false only records that the
+        input was let go: the stop stays engaged until release_estop().
+        """
+        was_engaged = self._estop.engaged
+        self._estop.set_pressed(pressed, reason)
+        if self._estop.engaged and not was_engaged:
+            self._stop_now()
+            self._status = STATUS_ESTOP
+            return True
+        return False
+
+    def release_estop(self) -> bool:
+        """
+        Release the e-stop; the output stays zero until a new command arrives.
+
+        Returns False, and stays engaged, while the input is still pressed; True
+        otherwise (also when it was not engaged).
+        """
         if self._estop.engaged:
-            self._estop.release()
+            if not self._estop.release():
+                return False
             self._stop_now()
             self._status = STATUS_WAITING
+        return True
 
     def update(self, now_s: float) -> WheelSpeeds:
         """
@@ -355,7 +461,7 @@ class MotorCommandCore:
 
     @property
     def target_twist(self) -> Twist2D:
-        """Return the current target twist (validated, clamped, desaturated)."""
+        """Return the current target twist (validated, limited by limit_twist)."""
         return self._target
 
     @property
@@ -374,6 +480,11 @@ class MotorCommandCore:
         return self._estop.engaged
 
     @property
+    def estop_pressed(self) -> bool:
+        """Return True while the e-stop input's last value was true."""
+        return self._estop.pressed
+
+    @property
     def state(self) -> MotorCommandState:
         """Return a snapshot for diagnostics."""
         return MotorCommandState(status=self._status, target_twist=self._target,
@@ -387,12 +498,3 @@ class MotorCommandCore:
         self._watchdog.reset()
         self._limiter.reset(ZERO_TWIST)
         self._wheels = (0.0, 0.0, 0.0, 0.0)
-
-    def _desaturate_twist(self, twist: Twist2D) -> Twist2D:
-        """Scale a twist as a whole so that no wheel exceeds max_wheel_speed_rad_s."""
-        peak = max(abs(w) for w in inverse_kinematics(self._geometry, *twist))
-        if peak <= self._max_wheel_speed:
-            return twist
-        scale = self._max_wheel_speed / peak
-        vx, vy, wz = (v * scale for v in twist)
-        return vx, vy, wz

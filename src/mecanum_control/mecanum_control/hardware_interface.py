@@ -16,7 +16,17 @@ mecanum_control.imu_calibration) and
 them (its clock mapped to ROS time, mecanum_control.board_clock), not when they arrived. Service
 ``~/clear_board_faults`` (std_srvs/Trigger) asks the board to clear latched faults.
 
-Safety: efforts older than ``effort_timeout_s`` are replaced by zero;
+Only the nodes named in ``motor_efforts_publishers`` (velocity_controller in
+mecanum_controllers.yaml; '' = not checked) may publish ``motor_efforts``: the
+topic's publishers are looked up every ``publisher_check_period_s`` (steady clock), and
+while another node publishes it (a stray script, a second controller) zero is sent, an
+ERROR names it and /diagnostics reports it, until it has gone; then only efforts received
+after that are sent (mecanum_control.publisher_check).
+
+Safety: the port is opened for this program alone (an exclusive flock, as board_check
+takes it): a second program is refused with a message naming the holder, and while
+another program holds it this node logs that once and retries every
+``reconnect_period_s``. Efforts older than ``effort_timeout_s`` are replaced by zero;
 on link loss (read error, port gone, or no valid frame for ``link_timeout_s``) the
 stored command is zeroed and the node reopens ``port`` every ``reconnect_period_s``;
 after a reconnect only efforts received after it are sent. A zero command is written
@@ -42,12 +52,16 @@ from typing import Optional
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mecanum_control import esp32_protocol as proto
+from mecanum_control.board_check import open_exclusive, PortInUse
 from mecanum_control.board_clock import BoardClockSync
 from mecanum_control.imu_calibration import ImuRestCalibrator
+from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.parameters import declare_number, declare_robot_config, positive
+from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
 from mecanum_control.wheel_odometry import wrapped_delta
 from mecanum_interfaces.msg import WheelTicks
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
@@ -138,6 +152,20 @@ class HardwareInterface(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.efforts_sub = self.create_subscription(
             Float32MultiArray, 'motor_efforts', self.on_efforts, 10)
+        # Only the expected node(s) drive the board (publisher_check): zero meanwhile.
+        self.efforts_check = PublisherCheck(
+            self.efforts_sub.topic_name, parse_expected_publishers(
+                'motor_efforts_publishers', self.declare_parameter(
+                    'motor_efforts_publishers', '',
+                    ParameterDescriptor(dynamic_typing=True)).value),
+            self.get_namespace(), 'sending zero efforts to the board',
+            'sending the efforts received from now on')
+        check_period_s = positive('publisher_check_period_s', declare_number(
+            self, 'publisher_check_period_s', 1.0))
+        if self.efforts_check.enabled:
+            self.publisher_timer = self.create_timer(
+                check_period_s, self.check_publishers,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.clear_faults_srv = self.create_service(Trigger, '~/clear_board_faults',
                                                     self.on_clear_faults)
         # A real board (or the real-time emulator) lives in real time: the link's timers
@@ -191,6 +219,8 @@ class HardwareInterface(Node):
     # Commands to the board -------------------------------------------------------------
     def on_efforts(self, msg: Float32MultiArray) -> None:
         """Take new efforts; reject malformed ones (and command zero instead)."""
+        if self.efforts_check.stopped:
+            return  # an unexpected node publishes motor_efforts: nobody drives
         values = list(msg.data)
         if len(values) != 4 or not all(math.isfinite(v) for v in values):
             self.get_logger().warning(
@@ -221,6 +251,25 @@ class HardwareInterface(Node):
         if (since_sent_s >= STREAM_GAP_PERIODS * self.keepalive_s
                 or (stream_gone and since_sent_s >= 0.9 * self.keepalive_s)):
             self._send_efforts()
+
+    def check_publishers(self) -> None:
+        """Send zero while a node other than the expected ones publishes motor_efforts."""
+        check = self.efforts_check
+        change = check.update(self.get_publishers_info_by_topic(check.topic))
+        if change is not None:
+            with self._lock:  # 'stop': zero now; 'resume': only efforts from now on
+                self._efforts = ZERO_EFFORTS
+                self._efforts_at = -math.inf
+            if change == 'stop':
+                self.get_logger().error(check.message)
+                self._send_efforts()
+            else:
+                self.get_logger().warning(check.gone_message)
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(),
+            f'mecanum_control: hardware_interface publishers of {check.topic}',
+            DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK, check.message,
+            [KeyValue(key=key, value=value) for key, value in check.values], hardware_id=''))
 
     def on_clear_faults(self, _request, response):
         """Ask the board to clear its latched faults (those whose cause has gone)."""
@@ -280,12 +329,17 @@ class HardwareInterface(Node):
             # mid-run saw 'no valid frame for 27 s' at once). The timer retries.
             return
         try:
-            port = serial.Serial(self.port, self.baud_rate, timeout=0.05, write_timeout=0)
+            # For this program alone: board_check (or a second stack) is refused, and
+            # while it holds the board this node is refused and retries as for an
+            # absent port (an error, once per holder).
+            port = open_exclusive(self.port, self.baud_rate, timeout=0.05, write_timeout=0)
         except (serial.SerialException, OSError, ValueError) as error:
             if self._disconnect_reason != str(error):
                 self._disconnect_reason = str(error)
-                self.get_logger().warning(f'Cannot open {self.port}: {error}; retrying every '
-                                          f'{self.reconnect_period_s} s')
+                log = (self.get_logger().error if isinstance(error, PortInUse)
+                       else self.get_logger().warning)
+                log(f'Cannot open {self.port}: {error}; retrying every '
+                    f'{self.reconnect_period_s} s')
             return
         try:
             port.reset_input_buffer()

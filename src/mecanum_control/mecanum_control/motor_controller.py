@@ -6,29 +6,42 @@ Subscribes ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
 (std_msgs/Bool: true engages a latching stop). Publishes ``motor_speeds``
 (std_msgs/Float32MultiArray, wheel angular velocities rad/s, FL FR RL RR) at
 ``publish_rate_hz`` and at once on every accepted command, and ``/diagnostics``.
-Service ``~/release_emergency_stop`` (std_srvs/Trigger) releases the stop; the robot
-then waits for a new command. With ``estop_latch_file`` set, an engaged stop is also
-recorded in that file, so a restarted node (respawn, crash) starts engaged.
+Service ``~/release_emergency_stop`` (std_srvs/Trigger) releases the stop (refused
+while ``emergency_stop`` is still true); the robot then waits for a new command. The
+latch is published on ``emergency_stop_latched`` (std_msgs/Bool, transient local, on
+every change and every second), which twist_mux locks on: this one service clears the
+whole chain. With ``estop_latch_file`` set, an engaged stop is also recorded in that
+file, so a restarted node (respawn, crash) starts engaged.
 
 Limits come from motor_params.yaml (per-axis velocity and acceleration, wheel speed
 with direction-keeping desaturation). NaN/inf or absurd commands (beyond
 ``absurd_factor`` times a limit) are rejected with a warning and stop the robot;
 without a command for ``cmd_timeout_s`` the wheels ramp to zero. The logic lives in
 :mod:`mecanum_control.command_limits`.
+
+Only the nodes named in ``cmd_vel_publishers`` ('' = not checked; control.launch.yaml
+sets zone_guard, the chain's last stage) may publish ``cmd_vel``: its publishers are
+looked up every ``publisher_check_period_s`` (steady clock), and while another node
+publishes it the wheel targets are zero and commands are ignored, an ERROR names it and
+/diagnostics reports it, until it has gone (mecanum_control.publisher_check).
 """
 
 from pathlib import Path
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.command_limits import (
     AxisLimits, CommandRejected, MotorCommandCore, TwistLimits)
 from mecanum_control.messages import diagnostic_array, wheel_array
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.parameters import declare_number, declare_robot_config, positive
+from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Bool, Float32MultiArray
 from std_srvs.srv import Trigger
 
@@ -75,9 +88,28 @@ class MotorController(Node):
                 TwistStamped, 'cmd_vel', lambda msg: self.on_twist(msg.twist), 10)
         else:
             self.cmd_sub = self.create_subscription(Twist, 'cmd_vel', self.on_twist, 10)
+        # Only the expected node(s) drive (publisher_check): wheels held at zero meanwhile.
+        self.cmd_check = PublisherCheck(
+            self.cmd_sub.topic_name, parse_expected_publishers(
+                'cmd_vel_publishers', self.declare_parameter(
+                    'cmd_vel_publishers', '', ParameterDescriptor(dynamic_typing=True)).value),
+            self.get_namespace(), 'wheel speed targets held at zero, commands ignored',
+            'commands accepted again')
+        check_period_s = positive('publisher_check_period_s', declare_number(
+            self, 'publisher_check_period_s', 1.0))
+        if self.cmd_check.enabled:
+            self.publisher_timer = self.create_timer(
+                check_period_s, self.check_publishers,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.estop_sub = self.create_subscription(Bool, 'emergency_stop', self.on_estop, 10)
         self.release_srv = self.create_service(Trigger, '~/release_emergency_stop',
                                                self.on_release)
+        # The latch for twist_mux's e_stop_latched lock (a restarted mux hears it within 1 s).
+        self.latch_pub = self.create_publisher(
+            Bool, 'emergency_stop_latched',
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.latch_timer = self.create_timer(1.0, self.publish_latch)
+        self.publish_latch()
         self.timer = self.create_timer(1.0 / publish_rate_hz, self.publish_speeds)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.get_logger().info(
@@ -91,6 +123,8 @@ class MotorController(Node):
 
     def on_twist(self, msg: Twist) -> None:
         """Take a body twist; reject NaN/inf or absurd ones (the robot then stops)."""
+        if self.cmd_check.stopped:
+            return  # an unexpected node publishes cmd_vel: nobody drives
         try:
             self.core.on_command(msg.linear.x, msg.linear.y, msg.angular.z, self.now_s())
         except CommandRejected as error:
@@ -100,8 +134,8 @@ class MotorController(Node):
 
     def on_estop(self, msg: Bool) -> None:
         """Engage the latching emergency stop on true; false does not release it."""
-        if msg.data and self.core.status != 'estop':
-            self.core.engage_estop('emergency_stop topic')
+        if self.core.set_estop_input(msg.data, 'emergency_stop topic'):
+            self.publish_latch()
             self._write_latch()
             self.get_logger().error('EMERGENCY STOP engaged: wheels held at zero until '
                                     f'{self.release_service_name} is called')
@@ -111,7 +145,13 @@ class MotorController(Node):
     def on_release(self, _request, response):
         """Release the emergency stop; motion resumes only with a new command."""
         was_engaged = self.core.status == 'estop'
-        self.core.release_estop()
+        if not self.core.release_estop():
+            response.success = False
+            response.message = ('emergency stop NOT released: emergency_stop is still true '
+                                '(let go of the e-stop, i.e. publish false, first)')
+            self.get_logger().warning(response.message)
+            return response
+        self.publish_latch()
         if self.estop_latch_file is not None:
             self.estop_latch_file.unlink(missing_ok=True)
         response.success = True
@@ -120,6 +160,10 @@ class MotorController(Node):
         self.get_logger().warning(response.message)
         self.publish_diagnostics()
         return response
+
+    def publish_latch(self) -> None:
+        """Publish whether the emergency stop is latched (emergency_stop_latched)."""
+        self.latch_pub.publish(Bool(data=self.core.estop_engaged))
 
     def _write_latch(self) -> None:
         """Record the engaged stop so that a restarted node starts engaged too."""
@@ -134,13 +178,31 @@ class MotorController(Node):
 
     def publish_speeds(self) -> None:
         """Publish the wheel speed targets for now."""
-        self.speeds_pub.publish(wheel_array(self.core.update(self.now_s())))
+        speeds = self.core.update(self.now_s())
+        if self.cmd_check.stopped:
+            speeds = (0.0, 0.0, 0.0, 0.0)  # the core times out and ramps down meanwhile
+        self.speeds_pub.publish(wheel_array(speeds))
         status = self.core.status
         if status != self._reported_status:
             if status == 'timeout':
                 self.get_logger().warning('No cmd_vel within the timeout: stopping')
             self._reported_status = status
             self.publish_diagnostics()
+
+    def check_publishers(self) -> None:
+        """Hold the wheels while a node other than the expected ones publishes cmd_vel."""
+        check = self.cmd_check
+        change = check.update(self.get_publishers_info_by_topic(check.topic))
+        if change == 'stop':
+            self.get_logger().error(check.message)
+            self.publish_speeds()
+        elif change == 'resume':
+            self.get_logger().warning(check.gone_message)
+        self.diag_pub.publish(diagnostic_array(
+            self.get_clock().now().to_msg(),
+            f'mecanum_control: motor_controller publishers of {check.topic}',
+            DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK, check.message,
+            [KeyValue(key=key, value=value) for key, value in check.values], hardware_id=''))
 
     def close(self) -> None:
         """Publish zero wheel speeds once more on the way out."""

@@ -17,6 +17,18 @@ zero. Stale targets (``target_timeout_s``) mean zero; stale measurements
 ``PLAUSIBLE_SPEED_FACTOR`` x ``max_wheel_speed_rad_s`` are rejected as garbage (the
 message is ignored, so persistent garbage trips the measurement timeout), and a
 non-finite PID output is sent as 0. Gains: ``config/pid_gains.yaml``.
+
+Only the nodes named in ``motor_speeds_publishers`` (motor_controller),
+``joint_states_publishers`` (encoder_reader) and ``motor_efforts_publishers`` (this
+node; all set in pid_gains.yaml, '' = not checked) may publish those topics: their
+publishers are looked up every ``publisher_check_period_s`` (steady clock), and while
+another node publishes one (a stray script, a second controller, a
+joint_state_publisher) every effort is zero, an ERROR names it and /diagnostics reports
+it; once it has gone, control resumes with the targets and measurements received from
+then on (mecanum_control.publisher_check). An intruder on motor_efforts also clears the
+stall latches (hardware_interface holds the board at zero for it, so wheels that stood
+still were not stalled), and control resumes one check after it has gone, when
+hardware_interface has resumed.
 """
 
 import math
@@ -24,11 +36,14 @@ import sys
 from typing import List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mecanum_control.messages import wheel_array
+from mecanum_control.messages import diagnostic_array, wheel_array
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.parameters import declare_number, declare_robot_config, positive
 from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains, StallConfig,
                                  StallDetector)
+from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -85,6 +100,24 @@ class VelocityController(Node):
             Float32MultiArray, 'motor_speeds', self.on_targets, 10)
         self.joint_sub = self.create_subscription(
             JointState, 'joint_states', self.on_joint_states, 20)
+        # Only the expected nodes feed the loops and drive the motors (publisher_check):
+        # zero efforts meanwhile. On its own output, motor_efforts, it resumes one check
+        # later than hardware_interface (which zeroes the board meanwhile, same period),
+        # so that the loops never push against a board held at zero (a false stall).
+        self.publisher_checks = [PublisherCheck(
+            topic.topic_name, parse_expected_publishers(parameter, declare(
+                parameter, '', ParameterDescriptor(dynamic_typing=True)).value),
+            self.get_namespace(), 'all efforts zero', 'control resumes with the data received '
+            'from now on', resume_after) for topic, parameter, resume_after in (
+                (self.target_sub, 'motor_speeds_publishers', 1),
+                (self.joint_sub, 'joint_states_publishers', 1),
+                (self.efforts_pub, 'motor_efforts_publishers', 2))]
+        check_period_s = positive('publisher_check_period_s', declare_number(
+            self, 'publisher_check_period_s', 1.0))
+        if any(check.enabled for check in self.publisher_checks):
+            self.publisher_timer = self.create_timer(
+                check_period_s, self.check_publishers,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.timer = self.create_timer(1.0 / control_rate_hz, self.on_control)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.get_logger().info(
@@ -93,6 +126,8 @@ class VelocityController(Node):
 
     def on_targets(self, msg: Float32MultiArray) -> None:
         """Take wheel speed targets; malformed or non-finite ones mean stop."""
+        if self._intruded():
+            return  # an unexpected node publishes an input: nobody drives
         values = list(msg.data)
         if len(values) != 4 or not all(math.isfinite(v) for v in values):
             self.get_logger().warning(f'Rejecting motor_speeds {values}: need 4 finite '
@@ -111,7 +146,7 @@ class VelocityController(Node):
         max_wheel_speed_rad_s, is ignored with a throttled warning (the previous
         measurement and its age stay, so garbage that persists trips the timeout).
         """
-        if len(msg.velocity) != len(msg.name):
+        if self._intruded() or len(msg.velocity) != len(msg.name):
             return
         speeds = dict(zip(msg.name, msg.velocity))
         if not all(name in speeds for name in self.joint_names):
@@ -143,7 +178,11 @@ class VelocityController(Node):
         targets = self.targets
         if self._age_s(self.target_time, now) > self.target_timeout_s:
             targets = [0.0] * 4
-        if self.measured_time is None:
+        if self._intruded():
+            for pid in self.pids:
+                pid.reset()
+            self.efforts = [0.0] * 4
+        elif self.measured_time is None:
             self.efforts = [0.0] * 4  # waiting for the first joint_states
         elif self._age_s(self.measured_time, now) > self.measurement_timeout_s:
             self._set_state('no wheel speed measurements (joint_states) for '
@@ -155,6 +194,42 @@ class VelocityController(Node):
             self._set_state('ok')
             self.efforts = self._run_pids(targets, dt_s)
         self.efforts_pub.publish(wheel_array(self.efforts))
+
+    def _intruded(self) -> bool:
+        """Tell whether an unexpected node publishes motor_speeds, joint_states or efforts."""
+        return any(check.stopped for check in self.publisher_checks)
+
+    def check_publishers(self) -> None:
+        """Stop every wheel while a node other than the expected ones publishes an input."""
+        for check in self.publisher_checks:
+            change = check.update(self.get_publishers_info_by_topic(check.topic))
+            if change == 'stop':
+                self.get_logger().error(check.message)
+            elif change == 'resume':
+                self.get_logger().warning(check.gone_message)
+            if change is not None:
+                # Only what arrives from now on counts (none of the intruder's data).
+                self.target_time = self.measured_time = None
+            if change == 'stop' and check.topic == self.efforts_pub.topic_name:
+                self._clear_stalls()
+            if check.enabled:
+                self.diag_pub.publish(diagnostic_array(
+                    self.get_clock().now().to_msg(),
+                    f'mecanum_control: velocity_controller publishers of {check.topic}',
+                    DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK,
+                    check.message, [KeyValue(key=key, value=value)
+                                    for key, value in check.values], hardware_id=''))
+
+    def _clear_stalls(self) -> None:
+        """Forget stalls: hardware_interface may have held the board at zero already."""
+        latched = [w for w, stall in zip(WHEELS, self.stall_detectors) if stall.stalled]
+        for stall in self.stall_detectors:
+            stall.reset()
+        self._reported.clear()
+        if latched:
+            self.get_logger().warning(
+                f'Stall of {", ".join(latched)} cleared: hardware_interface sends zero while '
+                'motor_efforts has an unexpected publisher, so the wheels stood still')
 
     def _run_pids(self, targets: List[float], dt_s: float) -> List[float]:
         efforts = []

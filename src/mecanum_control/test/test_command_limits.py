@@ -4,9 +4,10 @@ import math
 
 from hypothesis import given, strategies as st
 from mecanum_control.command_limits import (
-    AxisLimits, CommandRejected, CommandWatchdog, EmergencyStop, MotorCommandCore, RateLimiter,
-    TwistLimits, validate_twist)
+    AxisLimits, CommandRejected, CommandWatchdog, EmergencyStop, limit_scale, limit_twist,
+    MotorCommandCore, RateLimiter, TwistLimits, validate_twist)
 from mecanum_control.kinematics import forward_kinematics, inverse_kinematics, MecanumGeometry
+from mecanum_control.robot_config import default_config_path, load_robot_config
 import pytest
 
 # r = 0.05 m, lx = 0.10 m, ly = 0.15 m: 1 rad/s of yaw is (lx + ly) / r = 5 rad/s per wheel,
@@ -77,24 +78,94 @@ def test_command_rejected_is_a_value_error():
     assert issubclass(CommandRejected, ValueError)
 
 
-def test_validate_passes_in_range_and_clamps_over_limit():
-    """In range: unchanged. Over the limit but not absurd: clamped to +-max_velocity."""
+def test_validate_only_checks_and_leaves_limiting_to_limit_twist():
+    """
+    Accepted commands come back unchanged, over-limit ones too (up to the absurd bound).
+
+    Clamping each axis on its own would turn the direction of motion: limiting is
+    limit_twist's job, which scales the twist as a whole.
+    """
     assert validate_twist(0.3, -0.2, 1.5, LIMITS) == (0.3, -0.2, 1.5)
-    assert validate_twist(1.0, -0.5, -2.0, LIMITS) == (1.0, -0.5, -2.0)
-    assert validate_twist(3.0, -0.7, 10.0, LIMITS) == (1.0, -0.5, 2.0)
-    assert validate_twist(-10.0, 5.0, -20.0, LIMITS) == (-1.0, 0.5, -2.0)   # at absurd bound
+    assert validate_twist(3.0, -0.7, 10.0, LIMITS) == (3.0, -0.7, 10.0)
+    assert validate_twist(-10.0, 5.0, -20.0, LIMITS) == (-10.0, 5.0, -20.0)  # absurd bound
+    assert all(isinstance(v, float) for v in validate_twist(1, 0, 0, LIMITS))
 
 
 finite_twists = st.tuples(st.floats(-10.0, 10.0), st.floats(-5.0, 5.0), st.floats(-20.0, 20.0))
 
+# --- limit_twist ------------------------------------------------------------------
 
-@given(finite_twists)
-def test_validate_output_always_within_limits(twist):
-    """Any accepted command comes out within +-max_velocity with the same signs."""
-    out = validate_twist(*twist, LIMITS)
-    for value, clamped, axis in zip(twist, out, LIMITS.axes):
-        assert abs(clamped) <= axis.max_velocity
-        assert clamped * value >= 0.0
+#: 0.5 m/s on both linear axes, as in the hand-worked example of issue 31.
+HALF = TwistLimits(x=AxisLimits(0.5, 1.0), y=AxisLimits(0.5, 1.0), wz=AxisLimits(2.0, 4.0))
+
+
+def test_limit_twist_hand_worked_diagonal_keeps_45_degrees():
+    """
+    (0.8, 0.8, 0) with 0.5 m/s per axis: both ratios 0.5 / 0.8 = 0.625 -> (0.5, 0.5, 0).
+
+    Its wheels: FR = RL = (0.5 + 0.5) / 0.05 = 20 rad/s, FL = RR = 0. Within 30 rad/s it
+    stays; with 16 rad/s it is scaled by 16 / 20 = 0.8 -> (0.4, 0.4, 0). Per-axis
+    clamping with x 1.0 and y 0.5 m/s would give (0.8, 0.5): 32 deg instead of 45.
+    """
+    assert limit_twist((0.8, 0.8, 0.0), HALF, GEOMETRY, 30.0) == pytest.approx((0.5, 0.5, 0.0))
+    assert limit_twist((0.8, 0.8, 0.0), HALF, GEOMETRY, 16.0) == pytest.approx((0.4, 0.4, 0.0))
+    assert limit_scale((0.8, 0.8, 0.0), HALF, GEOMETRY, 16.0) == pytest.approx(0.5)
+    # LIMITS (x 1.0, y 0.5): y sets the ratio 0.5 / 0.8 for the whole twist.
+    assert limit_twist((0.8, 0.8, 0.0), LIMITS, GEOMETRY, 30.0) == pytest.approx(
+        (0.5, 0.5, 0.0))
+
+
+def test_limit_twist_hand_worked_rotation_and_wheel_limit():
+    """
+    (0.5, 0, 2.5): wz ratio 2 / 2.5 = 0.8 -> (0.4, 0, 2.0); FR = (0.4 + 0.25 * 2) / 0.05 = 18.
+
+    With max wheel 9 rad/s the wheels set the ratio: 0.8 * 9 / 18 = 0.4 -> (0.2, 0, 1.0).
+    """
+    assert limit_twist((0.5, 0.0, 2.5), LIMITS, GEOMETRY, 30.0) == pytest.approx(
+        (0.4, 0.0, 2.0))
+    assert limit_twist((0.5, 0.0, 2.5), LIMITS, GEOMETRY, 9.0) == pytest.approx(
+        (0.2, 0.0, 1.0))
+    # Within every limit: returned exactly, as floats.
+    assert limit_twist((0.3, -0.2, 1), LIMITS, GEOMETRY, 30.0) == (0.3, -0.2, 1.0)
+    assert limit_scale((0.0, 0.0, 0.0), LIMITS, GEOMETRY, 30.0) == 1.0
+
+
+def test_limit_twist_the_robots_own_diagonal():
+    """
+    The robot's limits (motor_params.yaml): (0.8, 0.8, 0) -> (0.56, 0.56, 0).
+
+    0.8 / 0.6 m/s, 28 rad/s, r 0.04 m: the y ratio 0.75 gives (0.6, 0.6, 0), whose
+    wheels need 1.2 / 0.04 = 30 rad/s: times 28 / 30.
+    """
+    config = load_robot_config(default_config_path())
+    limits = TwistLimits.from_config(config)
+    assert limits.x == AxisLimits(config.max_velocity_x_m_s, config.max_acceleration_x_m_s2)
+    assert limits.wz.max_velocity == config.max_angular_velocity_rad_s
+    assert limit_twist((0.8, 0.8, 0.0), limits, config.geometry,
+                       config.max_wheel_speed_rad_s) == pytest.approx((0.56, 0.56, 0.0))
+
+
+def test_limit_twist_rejects_what_validate_twist_rejects():
+    """Non-finite and absurd twists raise CommandRejected, not a scaled command."""
+    with pytest.raises(CommandRejected, match='linear.y is nan'):
+        limit_twist((0.1, math.nan, 0.0), LIMITS, GEOMETRY, 30.0)
+    with pytest.raises(CommandRejected, match='absurd'):
+        limit_scale((0.0, 0.0, 25.0), LIMITS, GEOMETRY, 30.0)
+    with pytest.raises(ValueError, match='max_wheel_speed_rad_s'):
+        limit_twist((0.1, 0.0, 0.0), LIMITS, GEOMETRY, 0.0)
+
+
+@given(finite_twists, st.floats(5.0, 40.0))
+def test_limit_twist_keeps_direction_within_limits_and_is_idempotent(twist, max_wheel):
+    """Output = s * input with 0 < s <= 1, within every limit, unchanged when limited again."""
+    out = limit_twist(twist, LIMITS, GEOMETRY, max_wheel)
+    s = limit_scale(twist, LIMITS, GEOMETRY, max_wheel)
+    assert 0.0 < s <= 1.0
+    assert out == tuple(s * v for v in twist)
+    for value, axis in zip(out, LIMITS.axes):
+        assert abs(value) <= axis.max_velocity * (1.0 + 1e-9)
+    assert max(abs(w) for w in inverse_kinematics(GEOMETRY, *out)) <= max_wheel * (1.0 + 1e-9)
+    assert limit_twist(out, LIMITS, GEOMETRY, max_wheel) == out
 
 
 # --- RateLimiter ------------------------------------------------------------------
@@ -170,6 +241,22 @@ def test_emergency_stop_latches_and_keeps_first_reason():
     assert estop.engaged and estop.reason == 'bumper'
     estop.release()
     assert not estop.engaged and estop.reason == ''
+
+
+def test_emergency_stop_release_is_refused_while_its_input_is_pressed():
+    """The input true engages; release() refuses until the input is false, then releases."""
+    estop = EmergencyStop()
+    estop.set_pressed(True, 'emergency_stop topic')
+    assert estop.engaged and estop.pressed and estop.reason == 'emergency_stop topic'
+    assert estop.release() is False
+    assert estop.engaged
+    estop.set_pressed(False, 'emergency_stop topic')
+    assert estop.engaged and not estop.pressed          # let go: still latched
+    assert estop.release() is True
+    assert not estop.engaged and estop.reason == ''
+    # Engaged another way (a latch file): not pressed, so it can be released.
+    estop.engage('latch file')
+    assert estop.release() is True
 
 
 def test_watchdog_hand_worked():
@@ -257,19 +344,42 @@ def test_desaturation_keeps_direction():
 
 @given(finite_twists, st.floats(5.0, 40.0))
 def test_core_output_never_exceeds_wheel_limit_and_keeps_direction(twist, max_wheel):
-    """After ramping to any command, wheels <= max and the twist is a scaled clamped target."""
+    """After ramping to any command, wheels <= max and the twist is the command scaled."""
     core = make_core(max_wheel=max_wheel)
-    clamped = validate_twist(*twist, LIMITS)
     for k in range(40):
         core.on_command(*twist, k * DT)
         wheels = core.update(k * DT)
         assert max(abs(w) for w in wheels) <= max_wheel + 1e-9
     out = forward_kinematics(GEOMETRY, wheels)
-    norm2 = sum(c * c for c in clamped)
+    norm2 = sum(c * c for c in twist)
     if norm2 > 1e-12:
-        s = sum(o * c for o, c in zip(out, clamped)) / norm2
+        s = sum(o * c for o, c in zip(out, twist)) / norm2
         assert 0.0 < s <= 1.0 + 1e-9
-        assert out == pytest.approx([s * c for c in clamped], abs=1e-9)
+        assert out == pytest.approx([s * c for c in twist], abs=1e-9)
+
+
+def test_core_keeps_the_direction_of_an_over_limit_diagonal():
+    """
+    (0.8, 0.8, 0) m/s with y limited to 0.5 m/s: the target is (0.5, 0.5, 0), 45 deg.
+
+    Per-axis clamping gave (0.8, 0.5, 0) (32 deg): the wheels ran another twist than
+    the one the chain's stages had judged.
+    """
+    core = make_core(NO_ACCEL_LIMIT)
+    core.update(0.0)
+    core.on_command(0.8, 0.8, 0.0, 0.0)
+    assert core.target_twist == pytest.approx((0.5, 0.5, 0.0))
+    core.update(DT)
+    assert core.limited_twist == pytest.approx((0.5, 0.5, 0.0))
+
+
+@given(finite_twists, st.floats(5.0, 40.0))
+def test_core_is_a_no_op_on_a_twist_already_limited(twist, max_wheel):
+    """A twist that limit_twist already limited (twist_mux's output) is the target as is."""
+    limited = limit_twist(twist, LIMITS, GEOMETRY, max_wheel)
+    core = make_core(max_wheel=max_wheel)
+    core.on_command(*limited, 0.0)
+    assert core.target_twist == limited
 
 
 def test_rejected_command_zeroes_target():
@@ -307,6 +417,31 @@ def test_estop_latches_and_does_not_resume_old_command():
     ramp = run(core, 1.5, 2.0, command=(0.5, 0.0, 0.0))
     assert [w[0] for w in ramp] == pytest.approx([4.0, 8.0, 10.0, 10.0, 10.0])
     assert core.status == 'ok'
+
+
+def test_estop_input_latches_until_let_go_and_released():
+    """
+    The e-stop input latches: true, then false while commands keep coming: still zero.
+
+    A release while the input is still true is refused; after the release the output
+    stays zero until a NEW command.
+    """
+    core = make_core()
+    run(core, 0.0, 0.6, command=(0.5, 0.0, 0.0))
+    assert core.set_estop_input(True) is True           # engaged just now
+    assert core.set_estop_input(True) is False          # already engaged
+    assert core.status == 'estop' and core.estop_pressed
+    assert core.release_estop() is False                # still pressed: refused
+    assert core.status == 'estop'
+    assert core.set_estop_input(False) is False
+    assert core.estop_engaged and not core.estop_pressed
+    assert all(w == (0.0,) * 4 for w in run(core, 0.6, 1.2, command=(0.5, 0.0, 0.0)))
+    assert core.status == 'estop'
+    assert core.release_estop() is True
+    assert core.status == 'waiting'
+    assert all(w == (0.0,) * 4 for w in run(core, 1.2, 1.5))
+    assert [w[0] for w in run(core, 1.5, 1.8, command=(0.5, 0.0, 0.0))] == pytest.approx(
+        [4.0, 8.0, 10.0])
 
 
 def test_estop_zeroes_output_on_the_very_next_update():

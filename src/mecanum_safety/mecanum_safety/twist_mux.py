@@ -39,11 +39,28 @@ Deliberate differences from twist_mux (safety):
 - Bad parameters raise ValueError naming the parameter (twist_mux clamps priorities to
   0-255 and accepts negative or non-finite timeouts); two entries on one topic and a
   configuration without topics are refused.
+- The robot's limits (``limit``: mecanum_control.command_limits.limit_scale with
+  motor_params.yaml) apply to every forwarded twist: one over the limits is scaled down
+  as a whole (``Step.scale``, direction kept), the way motor_controller limits it, so
+  that the later stages (collision_monitor, zone_guard) judge the twist the wheels will
+  run. A twist beyond ``absurd_factor`` times a limit is garbage: rejected as a
+  non-finite one (not forwarded, its source counts as silent), not scaled to full speed.
+- A lock stops the sources it masks until each sends a NEW command: a topic that was
+  live while masked by an engaged lock is *held* after the lock releases, and stays
+  held (not selectable) until it sends a zero twist or falls silent for its timeout
+  (an accepted twist's age; a NaN does not count). A source that did not speak under
+  the lock is new and passes at once. twist_mux resumes the masked sources at once, so
+  a stale stream (e.g. navigation still publishing its last command) would drive the
+  robot again by itself after an emergency stop.
 """
 
 from dataclasses import dataclass
 import math
 from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+
+#: limit((vx, vy, wz)) -> the factor in (0, 1] bringing a twist within the robot's
+#: limits; raises ValueError for a twist to reject (command_limits.limit_scale).
+Limit = Callable[[Tuple[float, float, float]], float]
 
 #: twist_mux's priority range.
 PRIORITY_MIN, PRIORITY_MAX = 0, 255
@@ -53,6 +70,9 @@ ENTRY_KEYS = ('topic', 'timeout', 'priority')
 NONE = 'none'
 #: The state when no source is selected and a lock is engaged: 'locked by NAME'.
 LOCKED_BY = 'locked by '
+#: The state when no source is selected, no lock engaged, and a source waits for a new
+#: command after a lock: 'held NAME' (the highest-priority one).
+HELD = 'held '
 #: The components of a twist as the node passes them (linear x y z, angular x y z).
 COMPONENTS = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
 
@@ -72,15 +92,17 @@ class Step:
     """
     What to publish after an event.
 
-    forward: publish the twist that just arrived. stop: publish one zero twist (the
-    selection has just become no source). state: the selected source's name,
-    'locked by LOCK' or 'none'; changed: state differs from the last step's.
+    forward: publish the twist that just arrived, times scale (1: unchanged; below 1:
+    it was over the robot's limits). stop: publish one zero twist (the selection has
+    just become no source). state: the selected source's name, 'locked by LOCK',
+    'held TOPIC' or 'none'; changed: state differs from the last step's.
     """
 
     forward: bool
     stop: bool
     state: str
     changed: bool
+    scale: float = 1.0
 
 
 def _group_error(group: str, text: str) -> ValueError:
@@ -175,6 +197,11 @@ def non_finite_component(twist: Sequence[float]) -> Optional[str]:
     return None
 
 
+def _planar(twist: Sequence[float]) -> Tuple[float, float, float]:
+    """Return (linear.x, linear.y, angular.z) of a 6-component twist."""
+    return float(twist[0]), float(twist[1]), float(twist[5])
+
+
 class TwistMux:
     """
     The mux's state: when each input last spoke, the lock values, the selection.
@@ -185,12 +212,13 @@ class TwistMux:
     """
 
     def __init__(self, topics: Sequence[Entry], locks: Sequence[Entry] = (),
-                 resolve: Callable[[str], str] = str):
+                 resolve: Callable[[str], str] = str, limit: Optional[Limit] = None):
         """
         Check the configuration (ValueError naming the parameters) and start silent.
 
         resolve: topic name -> the name it means (the node's resolver, so that
-        'cmd_vel' and '/cmd_vel' count as the same topic).
+        'cmd_vel' and '/cmd_vel' count as the same topic). limit: the robot's limits
+        (see Limit; None: twists are forwarded unscaled, as by twist_mux).
         """
         if not topics:
             raise ValueError('parameter topics is empty: no command sources (topics.NAME.'
@@ -216,6 +244,11 @@ class TwistMux:
         self._topic_stamp: Dict[str, Optional[float]] = {e.name: None for e in self.topics}
         self._lock_stamp: Dict[str, Optional[float]] = {e.name: None for e in self.locks}
         self._lock_value: Dict[str, bool] = {e.name: False for e in self.locks}
+        # The last accepted twist of each topic (a NaN does not reset it), and whether
+        # the topic is held after a lock (see the module docstring).
+        self._accepted_stamp: Dict[str, Optional[float]] = {e.name: None for e in self.topics}
+        self._held: Dict[str, bool] = {e.name: False for e in self.topics}
+        self._limit = limit
         self._topics = {entry.name: entry for entry in self.topics}
         self._locks = {entry.name: entry for entry in self.locks}
         self.source: Optional[str] = None
@@ -250,47 +283,92 @@ class TwistMux:
         return (not self.topic_live(name, now_s)
                 or self._topics[name].priority < self.lock_priority(now_s))
 
+    def held(self, name: str, now_s: float) -> bool:
+        """Return whether topic NAME waits for a new command after a lock."""
+        entry, stamp = self._topics[name], self._accepted_stamp[name]
+        stopped = stamp is None or (entry.timeout_s > 0.0
+                                    and self._expired(entry, stamp, now_s))
+        return self._held[name] and not stopped
+
+    def _update_held(self, now_s: float) -> None:
+        """Hold every live topic masked by a lock; forget the hold of stopped ones."""
+        lock_priority = self.lock_priority(now_s)
+        for entry in self.topics:
+            if not self.held(entry.name, now_s):
+                self._held[entry.name] = False
+            if self.topic_live(entry.name, now_s) and entry.priority < lock_priority:
+                self._held[entry.name] = True
+
     def select(self, now_s: float) -> Optional[str]:
         """Return the selected topic's name, or None (twist_mux's hasPriority loop)."""
         best_priority, best = PRIORITY_MIN, None
         for entry in self.topics:
-            if not self.masked(entry.name, now_s) and entry.priority > best_priority:
+            if (not self.masked(entry.name, now_s) and not self.held(entry.name, now_s)
+                    and entry.priority > best_priority):
                 best_priority, best = entry.priority, entry.name
         return best
 
     def state_at(self, now_s: float) -> str:
-        """Return the selected topic, else 'locked by LOCK' (highest engaged), else 'none'."""
+        """
+        Return the state: the selected topic, or why none is selected.
+
+        Else 'locked by LOCK' (the highest engaged lock), else 'held TOPIC' (the
+        highest-priority held topic), else 'none'.
+        """
         source = self.select(now_s)
         if source is not None:
             return source
         engaged = [e for e in self.locks if self.lock_engaged(e.name, now_s)]
         if engaged:
             return LOCKED_BY + max(engaged, key=lambda e: e.priority).name
+        held = [e for e in self.topics if self.held(e.name, now_s)]
+        if held:
+            return HELD + max(held, key=lambda e: e.priority).name
         return NONE
 
     # -- events -------------------------------------------------------------------------
 
-    def _step(self, now_s: float, arrived: Optional[str] = None) -> Step:
+    def _step(self, now_s: float, arrived: Optional[str] = None, scale: float = 1.0) -> Step:
+        self._update_held(now_s)
         source = self.select(now_s)
         state = self.state_at(now_s)
-        step = Step(forward=arrived is not None and source == arrived,
-                    stop=self.source is not None and source is None,
-                    state=state, changed=state != self.state)
+        forward = arrived is not None and source == arrived
+        step = Step(forward=forward, stop=self.source is not None and source is None,
+                    state=state, changed=state != self.state,
+                    scale=scale if forward else 1.0)
         self.source, self.state = source, state
         return step
+
+    def _check(self, twist: Sequence[float]) -> Tuple[Optional[str], float]:
+        """Return (why twist is rejected or None, the factor bringing it within limits)."""
+        problem = non_finite_component(twist)
+        if problem is not None or self._limit is None:
+            return problem, 1.0
+        try:
+            return None, self._limit(_planar(twist))
+        except ValueError as error:
+            return str(error), 1.0
+
+    def rejection(self, twist: Sequence[float]) -> Optional[str]:
+        """Return why a twist is rejected ('linear.x is nan', '... is absurd ...') or None."""
+        return self._check(twist)[0]
 
     def on_twist(self, name: str, twist: Sequence[float], now_s: float) -> Step:
         """
         Take a twist (linear x y z, angular x y z) from topic NAME at now_s.
 
-        Forwarded when NAME is then the selected topic; a non-finite one never is, and
-        makes NAME silent until its next finite twist.
+        Forwarded when NAME is then the selected topic, times Step.scale; a rejected
+        one (non-finite, or absurd for the limits) never is, and makes NAME silent
+        until its next accepted twist. A zero twist re-arms a held topic.
         """
-        if non_finite_component(twist) is not None:
+        problem, scale = self._check(twist)
+        if problem is not None:
             self._topic_stamp[name] = None
             return self._step(now_s)
-        self._topic_stamp[name] = now_s
-        return self._step(now_s, arrived=name)
+        self._topic_stamp[name] = self._accepted_stamp[name] = now_s
+        if all(value == 0.0 for value in twist):
+            self._held[name] = False   # held again by _step if a lock still masks it
+        return self._step(now_s, arrived=name, scale=scale)
 
     def on_lock(self, name: str, value: bool, now_s: float) -> Step:
         """Take lock NAME's value at now_s."""
@@ -305,11 +383,18 @@ class TwistMux:
     # -- reporting ----------------------------------------------------------------------
 
     def topic_status(self, name: str, now_s: float) -> str:
-        """Return 'selected', 'live', 'masked' (live, below the locks) or 'silent'."""
+        """
+        Return 'selected', 'live', 'masked', 'held' or 'silent'.
+
+        masked: live, below the locks; held: live, waiting for a new command after a
+        lock.
+        """
         if not self.topic_live(name, now_s):
             return 'silent'
         if self.masked(name, now_s):
             return 'masked'
+        if self.held(name, now_s):
+            return 'held'
         return 'selected' if self.select(now_s) == name else 'live'
 
     def lock_status(self, name: str, now_s: float) -> str:

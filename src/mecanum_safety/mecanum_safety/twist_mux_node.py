@@ -16,18 +16,32 @@ arrives (nothing is published periodically).
 Differences from twist_mux (see the core's docstring): when the selection becomes no
 source (the selected topic timed out or sent NaN/inf, or a lock engaged) the node
 publishes ONE zero twist at once, then nothing while no source is selected; a twist
-with a NaN/inf component is not forwarded (throttled warning) and its source counts as
-silent; bad parameters stop the node with a message naming the parameter. The node
-also publishes one zero twist when it is closed (Ctrl-C, SIGTERM) while a source is
-selected.
+with a NaN/inf component, or beyond ``absurd_factor`` (default 10) times a limit, is
+not forwarded (throttled warning) and its source counts as silent; bad parameters stop
+the node with a message naming the parameter. The node also publishes one zero twist
+when it is closed (Ctrl-C, SIGTERM) while a source is selected.
+
+The robot's limits: the node reads motor_params.yaml's parameters (mecanum_control's,
+passed by command_chain.launch.yaml; those not given fall back to the installed file)
+and forwards every twist limited by mecanum_control.command_limits.limit_scale, the
+function motor_controller limits with: one over a velocity or wheel-speed limit is
+scaled down as a whole (every component by one factor, direction kept; throttled
+info), so that collision_monitor and zone_guard judge the twist the wheels will run.
+
+After a lock (e.g. the emergency stop), a source that kept publishing while masked is
+held until it sends a new command (a zero twist, or silence for its timeout): a stale
+stream never resumes motion by itself. The project's config also locks on
+motor_controller's ``emergency_stop_latched``, so the e-stop stays engaged here until
+the operator calls ``/motor_controller/release_emergency_stop``.
 
 Timeouts are measured on the node's clock (use_sim_time works) and checked by a timer
 every ``CHECK_PERIOD_S`` s of that clock, since a silent source produces no callback.
 
 Also published: ``cmd_vel_mux_state`` (std_msgs/String, transient local, depth 1: the
-selected topic's NAME, 'locked by LOCK' or 'none', on every change) and
+selected topic's NAME, 'locked by LOCK', 'held NAME' or 'none', on every change) and
 ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, every second: per topic selected /
-live / masked / silent, per lock engaged / free; twist_mux's "Twist mux status").
+live / masked / held / silent, per lock engaged / free; twist_mux's "Twist mux
+status").
 Inputs and locks are subscribed reliable, volatile, depth 10 (twist_mux: system
 defaults), so a latched (transient local) lock publisher matches too.
 """
@@ -38,11 +52,15 @@ from typing import List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
+from mecanum_control.command_limits import limit_scale, TwistLimits
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
-from mecanum_safety.twist_mux import (
-    Entry, non_finite_component, parse_entries, Step, TwistMux)
+from mecanum_control.robot_config import (
+    default_config_path, PARAMETER_KINDS, parameters_from_yaml, robot_config_from_parameters,
+    RobotConfig)
+from mecanum_safety.twist_mux import Entry, parse_entries, Step, TwistMux
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Bool, String
@@ -59,6 +77,19 @@ DIAGNOSTIC_NAME = 'twist_mux: Twist mux status'
 def _components(twist: Twist) -> tuple:
     return (twist.linear.x, twist.linear.y, twist.linear.z,
             twist.angular.x, twist.angular.y, twist.angular.z)
+
+
+def _scaled(msg, scale: float, stamped: bool):
+    """Return a copy of a Twist (or TwistStamped, header kept) times scale."""
+    out = TwistStamped() if stamped else Twist()
+    twist_in, twist_out = (msg.twist, out.twist) if stamped else (msg, out)
+    if stamped:
+        out.header = msg.header
+    for part in ('linear', 'angular'):
+        vector_in, vector_out = getattr(twist_in, part), getattr(twist_out, part)
+        for axis in ('x', 'y', 'z'):
+            setattr(vector_out, axis, float(scale * getattr(vector_in, axis)))
+    return out
 
 
 def _describe(entries: List[Entry]) -> str:
@@ -85,7 +116,15 @@ class TwistMuxNode(Node):
                   for name, parameter in self.get_parameters_by_prefix('').items()}
         topics, topic_warnings = parse_entries('topics', values)
         locks, lock_warnings = parse_entries('locks', values)
-        self.core = TwistMux(topics, locks, resolve=self.resolve_topic_name)
+        config = self._robot_config()
+        absurd_factor = self._number('absurd_factor', 10.0)
+        try:
+            limits = TwistLimits.from_config(config, absurd_factor)
+        except ValueError as error:
+            raise ValueError(f'parameter {error}') from None
+        limit = functools.partial(limit_scale, limits=limits, geometry=config.geometry,
+                                  max_wheel_speed_rad_s=config.max_wheel_speed_rad_s)
+        self.core = TwistMux(topics, locks, resolve=self.resolve_topic_name, limit=limit)
         for warning in topic_warnings + lock_warnings:
             self.get_logger().warning(warning)
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
@@ -108,10 +147,44 @@ class TwistMuxNode(Node):
         self.get_logger().info(
             f'Twist mux started: topics {_describe(topics)}; locks {_describe(locks)} '
             f'-> {self.cmd_pub.topic_name} '
-            f'({"TwistStamped" if stamped else "Twist"})')
+            f'({"TwistStamped" if stamped else "Twist"}); limits vx '
+            f'{config.max_velocity_x_m_s:g} m/s, vy {config.max_velocity_y_m_s:g} m/s, wz '
+            f'{config.max_angular_velocity_rad_s:g} rad/s, wheels '
+            f'{config.max_wheel_speed_rad_s:g} rad/s')
         self._apply(self.core.update(self._now_s()), None)
 
     # -- helpers ------------------------------------------------------------------------
+
+    def _robot_config(self) -> RobotConfig:
+        """
+        Return the robot's parameters (motor_params.yaml), validated.
+
+        Those in the parameter files are already declared (from the overrides); the
+        others are declared read-only with the installed motor_params.yaml's values,
+        as mecanum_control.parameters.declare_robot_config does.
+        """
+        defaults = parameters_from_yaml(default_config_path())
+        values = {}
+        for name in PARAMETER_KINDS:
+            if self.has_parameter(name):
+                values[name] = self.get_parameter(name).value
+            else:
+                descriptor = ParameterDescriptor(read_only=True,
+                                                 description='see motor_params.yaml')
+                values[name] = self.declare_parameter(
+                    name, defaults.get(name), descriptor).value
+        return robot_config_from_parameters(values)
+
+    def _number(self, name: str, default: float) -> float:
+        """Return a numeric parameter (declared from the overrides or with default)."""
+        if self.has_parameter(name):
+            value = self.get_parameter(name).value
+        else:
+            value = self.declare_parameter(
+                name, default, ParameterDescriptor(dynamic_typing=True)).value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f'parameter {name} must be a number, got {value!r}')
+        return float(value)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -131,11 +204,12 @@ class TwistMuxNode(Node):
         return msg
 
     def _apply(self, step: Step, msg) -> None:
-        """Publish what a step asks for: the message, one zero twist, the new state."""
+        """Publish what a step asks for: the message (limited), one zero twist, the state."""
         if step.forward and msg is not None:
             if self.stamped:
                 self._frame_id = msg.header.frame_id
-            self.cmd_pub.publish(msg)
+            self.cmd_pub.publish(msg if step.scale == 1.0
+                                 else _scaled(msg, step.scale, self.stamped))
         if step.stop:
             self.cmd_pub.publish(self._zero())
         now_s = self._now_s()
@@ -160,14 +234,19 @@ class TwistMuxNode(Node):
     # -- callbacks ----------------------------------------------------------------------
 
     def on_twist(self, entry: Entry, msg) -> None:
-        """Take a twist of one input; forward it if that input is the selected one."""
+        """Take a twist of one input; forward it (limited) if that input is selected."""
         values = _components(msg.twist if self.stamped else msg)
-        problem = non_finite_component(values)
+        problem = self.core.rejection(values)
         if problem is not None:
             self._warn(f'nan {entry.name}',
                        f'{entry.name}: twist on {entry.topic} rejected ({problem}); the '
                        'source counts as silent')
-        self._apply(self.core.on_twist(entry.name, values, self._now_s()), msg)
+        step = self.core.on_twist(entry.name, values, self._now_s())
+        if step.forward and step.scale < 1.0 and self._warnings.ready(f'limit {entry.name}'):
+            self.get_logger().info(
+                f'{entry.name}: twist ({values[0]:g}, {values[1]:g}, {values[5]:g}) over the '
+                f"robot's limits: scaled by {step.scale:.3g}, direction kept")
+        self._apply(step, msg)
 
     def on_lock(self, entry: Entry, msg: Bool) -> None:
         """Take a lock's value."""

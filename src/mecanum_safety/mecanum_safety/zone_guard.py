@@ -11,9 +11,9 @@ held constant for ``horizon_s`` (the exact arc of a constant body twist,
 :func:`integrate_twist`), sampled every ``SAMPLE_STEP_M`` of travel and every
 ``SAMPLE_STEP_RAD`` of heading. The motion is admissible when every sampled centre keeps
 a clearance (:meth:`Zone.clearance`, signed distance to the border) of at least
-``min(footprint_radius_m + margin_m, current clearance)``: so motion that keeps or
-increases the clearance is always allowed (back inward from the margin band, or even
-from outside the zone; along the border at the margin; pure rotation, which does not
+``min(footprint_radius_m + margin_m, current clearance)``: so, with the footprint inside
+the zone, motion that keeps or increases the clearance is always allowed (back inward
+from the margin band; along the border at the margin; pure rotation, which does not
 move a circle about base_link). The largest admissible s is returned: the robot slows
 down as it nears the border (speed about gap / horizon_s) and stops at radius + margin
 from it (a twist that would move less than ``MIN_TRAVEL_M`` over the horizon is a stop).
@@ -21,6 +21,19 @@ s = 0 is always admissible, and the returned s is checked admissible again befor
 returned. Between two samples a path can dip below the required clearance by at most
 about 1e-4 m (an arc of radius 0.1 m grazing the border, by its sagitta; a line passing
 a vertex 0.2 m away, by 6e-5 m): a few thousandths of the usual margin.
+
+Outside the zone (the footprint crosses the border: clearance < footprint_radius_m,
+whether the centre is out or in) the robot may only move back in (REASON_BACK_IN); a
+command that does not bring it in is stopped (REASON_OUTSIDE): outward, parallel to the
+border, or in and then along it. The rule, between consecutive samples (1 cm of travel
+apart at most): each sample's clearance is at least ``min(footprint_radius_m +
+margin_m, the previous sample's + INWARD_MIN_SLOPE * the distance between them)``: the
+footprint gets at least 1 mm further in per cm of travel (heading within about 84
+degrees of straight in), until it is radius + margin inside, and from there on the
+usual rule. Samples keep getting further in; between two of them a path crossing a
+ridge of the distance (the middle of an exclusion, say) can fall back from its peak by
+at most (1 - INWARD_MIN_SLOPE) / 2 of a sample step, 4.5 mm. Turning on the spot does
+not move the footprint circle: allowed, inside or out (REASON_TURNING_OUTSIDE).
 
 Scaling a constant twist by s only changes the speed along the same path: the pose at
 time t under s * twist is the pose at s * t under the twist. So the paths of all the
@@ -38,9 +51,18 @@ near a vertex). In a corridor along a wall the localisation is unsure along it a
 across it: the worst direction's sigma put the margin band over the corridor's middle,
 where the guard then stopped every command with the least drift toward the wall.
 
+The localisation's health (:func:`localisation_problem`): a pose with NaN or inf, a pose
+covariance with NaN or inf, not symmetric or not positive semi-definite, or a position
+standard deviation (worst direction) above ``max_position_sigma_m`` is unhealthy; a
+widened margin does not cover a localisation that lost track (the margin is capped).
+While it is unhealthy (:meth:`ZoneGuard.step` with ``localisation``) every command that
+moves the footprint is stopped (REASON_LOCALISATION); turning on the spot is allowed
+(REASON_TURNING_UNHEALTHY): it does not move the footprint circle, and it is what lets
+amcl update (it updates after ``update_min_a`` of rotation) and recover.
+
 robot_controller checks a whole open-loop motion with :func:`path_stays_inside` (every
-sampled pose's footprint inside with the margin), whose end pose is
-:func:`integrate_twist` of the same motion.
+sampled pose's footprint inside with the margin, or from outside the zone back in as
+the guard allows), whose end pose is :func:`integrate_twist` of the same motion.
 """
 
 from dataclasses import dataclass
@@ -72,6 +94,12 @@ REFINE_POINTS = 64
 REFINE_ROUNDS = 4
 #: Travel (m) over the horizon below which a scaled command is a stop (no creeping).
 MIN_TRAVEL_M = 1e-4
+#: Outside the zone, the clearance each sampled step must gain per metre of its travel:
+#: 1 mm per cm (heading within acos(0.1) = 84 degrees of straight in). Parallel motion
+#: gains nothing (0, to rounding) and is stopped; any real inward heading passes.
+INWARD_MIN_SLOPE = 0.1
+#: Relative tolerance (times the largest entry, at least 1) of the covariance checks.
+COVARIANCE_TOLERANCE = 1e-9
 
 REASON_CLEAR = 'clear'
 REASON_APPROACHING = 'approaching the border'
@@ -79,6 +107,16 @@ REASON_AT_BORDER = 'at the border'
 REASON_OUTSIDE = 'outside the zone'
 REASON_INVALID_COMMAND = 'invalid command'
 REASON_INVALID_POSE = 'invalid pose'
+REASON_BACK_IN = 'back into the zone'
+REASON_TURNING_OUTSIDE = 'turning on the spot outside the zone'
+REASON_LOCALISATION = 'localisation unhealthy'
+REASON_TURNING_UNHEALTHY = 'turning on the spot (localisation unhealthy)'
+
+KIND_POSE = 'NaN/inf in the pose'
+KIND_COVARIANCE = 'NaN/inf in the covariance'
+KIND_ASYMMETRIC = 'covariance not symmetric'
+KIND_NOT_PSD = 'covariance not positive semi-definite'
+KIND_SIGMA = 'position sigma too large'
 
 
 @dataclass(frozen=True)
@@ -87,16 +125,21 @@ class GuardResult:
     What the guard decided for one command.
 
     scale: the factor (in [0, 1]) for the whole twist. reason: REASON_CLEAR (scale 1),
-    REASON_APPROACHING (0 < scale < 1), REASON_AT_BORDER or REASON_OUTSIDE (scale 0, the
-    centre inside or outside the zone), REASON_INVALID_COMMAND or REASON_INVALID_POSE
-    (scale 0). clearance_m: the centre's current signed distance to the border (m; nan
-    when unknown). required_m: the clearance every predicted pose keeps (m).
+    REASON_APPROACHING (0 < scale < 1), REASON_AT_BORDER (scale 0, the footprint inside
+    the zone); with the footprint outside it, REASON_BACK_IN (scale > 0), REASON_OUTSIDE
+    (scale 0) or REASON_TURNING_OUTSIDE (turning on the spot, scale 1);
+    REASON_INVALID_COMMAND or REASON_INVALID_POSE (scale 0); REASON_LOCALISATION (scale
+    0) or REASON_TURNING_UNHEALTHY (scale 1) while the localisation is unhealthy.
+    clearance_m: the centre's current signed distance to the border (m; nan when
+    unknown). required_m: the clearance every predicted pose keeps (m; from outside,
+    the clearance the motion starts from). detail: what is wrong with the localisation.
     """
 
     scale: float
     reason: str
     clearance_m: float = math.nan
     required_m: float = math.nan
+    detail: str = ''
 
     def gap_m(self, footprint_radius_m: float) -> float:
         """Return the footprint's distance to the border now (m; < 0: it overlaps it)."""
@@ -225,6 +268,59 @@ def guard_margin(margin_m: float, covariance_factor: float, sigma_xy_m: float,
     return float(min(margin_m + covariance_factor * max(sigma_xy_m, 0.0), max_margin_m))
 
 
+@dataclass(frozen=True)
+class LocalisationProblem:
+    """Why a localisation is unhealthy: kind (words, one of KIND_*) and text (with numbers)."""
+
+    kind: str
+    text: str
+
+
+def localisation_problem(position: Sequence[float], orientation: Sequence[float],
+                         covariance: Sequence[float],
+                         max_position_sigma_m: float) -> Optional[LocalisationProblem]:
+    """
+    Return what is wrong with a localisation's pose and covariance, or None if healthy.
+
+    position (x, y, z; m) and orientation (quaternion x, y, z, w) of the pose, covariance
+    its row-major 6x6 covariance (36 values, geometry_msgs/PoseWithCovariance), checked
+    in this order: NaN/inf in the pose, NaN/inf in the covariance, a covariance not
+    symmetric or not positive semi-definite (beyond COVARIANCE_TOLERANCE times its
+    largest entry, at least 1: rounding), a position standard deviation along the worst
+    direction (:func:`sigma_xy`) above max_position_sigma_m (m). A covariance of zeros
+    (SLAM publishes no uncertainty) is healthy.
+    """
+    pose = tuple(float(v) for v in position), tuple(float(v) for v in orientation)
+    if not all(math.isfinite(v) for v in pose[0] + pose[1]):
+        return LocalisationProblem(KIND_POSE, f'{KIND_POSE} (position {pose[0]}, '
+                                              f'orientation {pose[1]})')
+    values = np.asarray(covariance, dtype=np.float64).ravel()
+    if values.size != 36:
+        raise ValueError(f'covariance must have 36 (6x6) values, got {values.size}')
+    bad = int(np.count_nonzero(~np.isfinite(values)))
+    if bad:
+        return LocalisationProblem(KIND_COVARIANCE,
+                                   f'{KIND_COVARIANCE} ({bad} of {values.size} values)')
+    matrix = values.reshape(6, 6)
+    tolerance = COVARIANCE_TOLERANCE * max(1.0, float(np.max(np.abs(matrix))))
+    difference = np.abs(matrix - matrix.T)
+    row, col = np.unravel_index(int(np.argmax(difference)), difference.shape)
+    if difference[row, col] > tolerance:
+        row, col = min(row, col), max(row, col)
+        return LocalisationProblem(KIND_ASYMMETRIC, (
+            f'{KIND_ASYMMETRIC} (largest difference {float(difference[row, col]):.3g} '
+            f'between [{row}][{col}] and [{col}][{row}])'))
+    lowest = float(np.min(np.linalg.eigvalsh(0.5 * (matrix + matrix.T))))
+    if lowest < -tolerance:
+        return LocalisationProblem(KIND_NOT_PSD, f'{KIND_NOT_PSD} (eigenvalue {lowest:.3g})')
+    sigma = sigma_xy(values)
+    if sigma > max_position_sigma_m:
+        return LocalisationProblem(KIND_SIGMA, (
+            f'position sigma {sigma:.2f} m > max_position_sigma_m '
+            f'{max_position_sigma_m:g} m'))
+    return None
+
+
 def _finite(*values: float) -> bool:
     return all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
                and math.isfinite(v) for v in values)
@@ -254,33 +350,68 @@ def _path_end(wz: float, end_s: float) -> float:
     return min(end_s, 2.0 * math.pi / abs(wz))
 
 
-class _Path:
-    """The samples of one constant-twist path from a pose: clearance by path parameter."""
+#: A sample of a path: (x, y, clearance) of the footprint centre (m).
+Sample = Tuple[float, float, float]
 
-    def __init__(self, zone: Zone, pose: Pose, twist: Twist2D):
+
+class _Path:
+    """
+    The samples of one constant-twist path from a pose, and the rule they must keep.
+
+    required_m: the clearance every sample keeps (m). With inward_cap_m (from outside
+    the zone) the rule is instead that each sample's clearance is at least
+    min(inward_cap_m, the previous sample's + INWARD_MIN_SLOPE * the distance between
+    them): it keeps getting further in until inward_cap_m.
+    """
+
+    def __init__(self, zone: Zone, pose: Pose, twist: Twist2D, required_m: float,
+                 inward_cap_m: Optional[float] = None):
         self.zone = zone
         self.pose = pose
         self.twist = twist
         self.step = _parameter_step(*twist)
+        self.required_m = required_m
+        self.inward_cap_m = inward_cap_m
+        start = float(zone.clearance(np.array([pose[0]]), np.array([pose[1]]))[0])
+        self.start: Sample = (pose[0], pose[1], start)
 
-    def clearance_at(self, times_s: np.ndarray) -> np.ndarray:
+    def samples_at(self, times_s: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (xs, ys, clearances) of the centre at these path parameters (s)."""
         xs, ys, _ = integrate_twists(self.pose, *self.twist, times_s)
-        return self.zone.clearance(xs, ys)
+        return xs, ys, self.zone.clearance(xs, ys)
 
-    def first_violation(self, end_s: float,
-                        required_m: float) -> Optional[Tuple[float, float]]:
+    def breaks(self, previous: Sample, xs: np.ndarray, ys: np.ndarray, clearances: np.ndarray,
+               tolerance_m: float, chained: bool = True) -> np.ndarray:
         """
-        Return (last good, first bad) path parameters, or None if the path keeps the rule.
+        Return which samples break the rule (bool array).
 
-        The samples are k * step for k * step < end_s, then end_s itself.
-        A sample breaks the rule when its clearance is below required_m - TOLERANCE_M.
+        previous: the sample before the first. chained: each sample follows the one
+        before it (False: each follows previous directly, for end points tried after it).
         """
-        threshold = required_m - TOLERANCE_M
+        if self.inward_cap_m is None:
+            return clearances < self.required_m - tolerance_m
+        if chained:
+            before_x = np.concatenate(([previous[0]], xs[:-1]))
+            before_y = np.concatenate(([previous[1]], ys[:-1]))
+            before_c = np.concatenate(([previous[2]], clearances[:-1]))
+        else:
+            before_x, before_y, before_c = previous
+        gained = INWARD_MIN_SLOPE * np.hypot(xs - before_x, ys - before_y)
+        return clearances < np.minimum(self.inward_cap_m, before_c + gained) - tolerance_m
+
+    def first_violation(self, end_s: float) -> Optional[Tuple[float, float, Sample]]:
+        """
+        Return (last good, first bad, the last good sample), or None if the path keeps the rule.
+
+        The samples are k * step for k * step < end_s, then end_s itself. A sample
+        breaks the rule when its clearance is below what the rule requires - TOLERANCE_M.
+        """
         previous = 0.0
+        last: Sample = self.start
         start = 0
         while True:
             if start >= MAX_SAMPLES:
-                return previous, previous   # undecided so far: cut the path here
+                return previous, previous, last   # undecided so far: cut the path here
             if self.step >= end_s:   # (inf for a path that does not move)
                 times = np.array([0.0])
                 last_chunk = True
@@ -293,25 +424,50 @@ class _Path:
             if last_chunk:
                 times = np.append(times, end_s)
             if times.size:
-                bad = np.flatnonzero(self.clearance_at(times) < threshold)
+                xs, ys, clearances = self.samples_at(times)
+                bad = np.flatnonzero(self.breaks(last, xs, ys, clearances, TOLERANCE_M))
                 if bad.size:
                     index = int(bad[0])
+                    if index:
+                        last = (float(xs[index - 1]), float(ys[index - 1]),
+                                float(clearances[index - 1]))
                     return (float(times[index - 1]) if index else previous,
-                            float(times[index]))
+                            float(times[index]), last)
                 previous = float(times[-1])
+                last = (float(xs[-1]), float(ys[-1]), float(clearances[-1]))
             if last_chunk:
                 return None
             start += CHUNK_SAMPLES
 
+    def refine(self, good: float, bad: float, last: Sample) -> float:
+        """
+        Return the furthest end point (path parameter) kept before bad, from good on.
+
+        Grids of REFINE_POINTS between good (its sample last) and bad, REFINE_ROUNDS
+        times; an end point there follows the sample at good, as it does in the scaled
+        path's own samples. Exactly the rule here: the tolerance is for rounding, not to
+        be used up.
+        """
+        low, high = good, bad
+        for _ in range(REFINE_ROUNDS):
+            grid = np.linspace(low, high, REFINE_POINTS + 2)[1:-1]
+            xs, ys, clearances = self.samples_at(grid)
+            below = np.flatnonzero(self.breaks(last, xs, ys, clearances, 0.0, chained=False))
+            first = int(below[0]) if below.size else grid.size
+            low, high = (grid[first - 1] if first else low), (
+                grid[first] if first < grid.size else high)
+            low, high = float(low), float(high)
+        return low
+
 
 def _admissible(zone: Zone, pose: Pose, twist: Twist2D, scale: float, horizon_s: float,
-                required_m: float) -> bool:
+                required_m: float, inward_cap_m: Optional[float]) -> bool:
     """Check the path of scale * twist over horizon_s on its own (the result's proof)."""
     if scale == 0.0:
         return True
     scaled = (scale * twist[0], scale * twist[1], scale * twist[2])
-    path = _Path(zone, pose, scaled)
-    return path.first_violation(_path_end(scaled[2], horizon_s), required_m) is None
+    path = _Path(zone, pose, scaled, required_m, inward_cap_m)
+    return path.first_violation(_path_end(scaled[2], horizon_s)) is None
 
 
 def guard_scale(zone: Zone, pose: Pose, twist: Twist2D, footprint_radius_m: float,
@@ -340,43 +496,38 @@ def guard_scale(zone: Zone, pose: Pose, twist: Twist2D, footprint_radius_m: floa
     pose = (float(pose[0]), float(pose[1]), float(pose[2]))
     clearance = float(zone.clearance(np.array([pose[0]]), np.array([pose[1]]))[0])
     required = min(radius + margin, clearance)
+    outside = clearance < radius   # the footprint crosses the border
+    inward_cap = radius + margin if outside else None
 
     def result(scale: float) -> GuardResult:
+        if outside:
+            reason = REASON_BACK_IN if scale > 0.0 else REASON_OUTSIDE
+            return GuardResult(min(scale, 1.0), reason, clearance, required)
         if scale >= 1.0:
             return GuardResult(1.0, REASON_CLEAR, clearance, required)
         if scale > 0.0:
             return GuardResult(scale, REASON_APPROACHING, clearance, required)
-        return GuardResult(0.0, REASON_AT_BORDER if clearance >= 0.0 else REASON_OUTSIDE,
-                           clearance, required)
+        return GuardResult(0.0, REASON_AT_BORDER, clearance, required)
 
     if twist[0] == 0.0 and twist[1] == 0.0:
-        return result(1.0)   # rotation (or nothing): the footprint circle does not move
-    path = _Path(zone, pose, twist)
-    violation = path.first_violation(_path_end(twist[2], horizon), required)
+        # Rotation (or nothing): the footprint circle does not move.
+        reason = REASON_TURNING_OUTSIDE if outside and twist[2] != 0.0 else REASON_CLEAR
+        return GuardResult(1.0, reason, clearance, required)
+    path = _Path(zone, pose, twist, required, inward_cap)
+    violation = path.first_violation(_path_end(twist[2], horizon))
     if violation is None:
         return result(1.0)
-    good, bad = violation
+    good, bad, last = violation
     candidates = []
     if bad > good:
-        # Refine the end between the last good sample and the first bad one, a grid of
-        # REFINE_POINTS at a time (exactly the required clearance here: the tolerance is
-        # for rounding, not to be used up).
-        low, high = good, bad
-        for _ in range(REFINE_ROUNDS):
-            grid = np.linspace(low, high, REFINE_POINTS + 2)[1:-1]
-            below = np.flatnonzero(path.clearance_at(grid) < required)
-            first = int(below[0]) if below.size else grid.size
-            low, high = (grid[first - 1] if first else low), (
-                grid[first] if first < grid.size else high)
-            low, high = float(low), float(high)
-        candidates.append(low)
+        candidates.append(path.refine(good, bad, last))
     candidates.append(good)
     speed = math.hypot(twist[0], twist[1])
     for end in candidates:
         if end * speed < MIN_TRAVEL_M:
             break
         scale = min(max(end / horizon, 0.0), 1.0)
-        if _admissible(zone, pose, twist, scale, horizon, required):
+        if _admissible(zone, pose, twist, scale, horizon, required, inward_cap):
             return result(scale)
     return result(0.0)
 
@@ -394,7 +545,10 @@ def path_stays_inside(zone: Zone, pose: Pose, vx: float, vy: float, wz: float,
     end included) must keep its footprint circle (radius_m) margin_m inside the zone:
     clearance >= radius_m + margin_m, or, from a start nearer the border than that, no
     nearer than at the start (the guard's rule: back inward, along the border and on the
-    spot are always allowed). Returns (True, '') or (False, a sentence saying
+    spot are always allowed); from a start outside the zone (the footprint across the
+    border), each sample further in than the one before by INWARD_MIN_SLOPE of the
+    distance between them until radius_m + margin_m inside, as the guard requires (on
+    the spot is allowed). Returns (True, '') or (False, a sentence saying
     where the footprint would leave it); raises ValueError for a bad radius_m or margin_m.
     """
     if not _finite(vx, vy, wz, duration_s) or duration_s < 0.0:
@@ -408,21 +562,26 @@ def path_stays_inside(zone: Zone, pose: Pose, vx: float, vy: float, wz: float,
     pose = (float(pose[0]), float(pose[1]), float(pose[2]))
     start = float(zone.clearance(np.array([pose[0]]), np.array([pose[1]]))[0])
     # The guard's rule: a robot already nearer than radius + margin (the guard stopped it
-    # there, with some overshoot) may still move in any way that gets no nearer.
+    # there, with some overshoot) may still move in any way that gets no nearer; one
+    # outside the zone only back in.
     required = min(radius + margin, start)
+    outside = start < radius
     if twist[0] == 0.0 and twist[1] == 0.0:
         return True, ''
-    path = _Path(zone, pose, twist)
-    violation = path.first_violation(_path_end(twist[2], float(duration_s)), required)
+    path = _Path(zone, pose, twist, required, radius + margin if outside else None)
+    violation = path.first_violation(_path_end(twist[2], float(duration_s)))
     if violation is None:
         return True, ''
-    bad_s = violation[1]
+    bad_s, last = violation[1], violation[2]
     x, y, _ = integrate_twist(pose, *twist, bad_s)
     clearance = float(zone.clearance(np.array([x]), np.array([y]))[0])
+    when = f'at ({x:.2f}, {y:.2f}) after {bad_s:.2f} s of the {float(duration_s):.2f} s motion'
+    if outside and last[2] < radius + margin - TOLERANCE_M:   # not in yet
+        return False, (f'the footprint is {radius - start:.2f} m out of the authorised zone '
+                       f'and would not be getting back in {when}')
     where = ('out of the authorised zone' if clearance < radius
              else f'within {margin:.2f} m of the border of the authorised zone')
-    return False, (f'the footprint would come {where} at ({x:.2f}, {y:.2f}) after '
-                   f'{bad_s:.2f} s of the {float(duration_s):.2f} s motion')
+    return False, f'the footprint would come {where} {when}'
 
 
 @dataclass(frozen=True)
@@ -441,10 +600,11 @@ class ZoneGuard:
     margin_m: float = 0.05
     covariance_factor: float = 2.0
     max_margin_m: float = 0.5
+    max_position_sigma_m: float = 0.25
 
     def __post_init__(self):
         """Check every setting (ValueError naming it)."""
-        for name in ('footprint_radius_m', 'horizon_s'):
+        for name in ('footprint_radius_m', 'horizon_s', 'max_position_sigma_m'):
             value = getattr(self, name)
             if not _finite(value) or value <= 0.0:
                 raise ValueError(f'{name} must be a finite number > 0, got {value!r}')
@@ -453,6 +613,12 @@ class ZoneGuard:
         if self.max_margin_m < self.margin_m:
             raise ValueError(f'max_margin_m ({self.max_margin_m!r}) must be >= margin_m '
                              f'({self.margin_m!r})')
+
+    def localisation_problem(self, position: Sequence[float], orientation: Sequence[float],
+                             covariance: Sequence[float]) -> Optional[LocalisationProblem]:
+        """Return what is wrong with the localisation (:func:`localisation_problem`), or None."""
+        return localisation_problem(position, orientation, covariance,
+                                    self.max_position_sigma_m)
 
     def margin(self, sigma_xy_m: float) -> float:
         """Return the distance (m) kept from the border for a localisation sigma_xy_m (m)."""
@@ -476,18 +642,27 @@ class ZoneGuard:
                                    reach)
 
     def step(self, pose: Pose, twist: Twist2D, sigma_xy_m: float = 0.0,
-             covariance: Optional[Sequence[float]] = None) -> GuardResult:
+             covariance: Optional[Sequence[float]] = None,
+             localisation: Optional[LocalisationProblem] = None) -> GuardResult:
         """
         Return the decision for twist at pose.
 
         The margin grows with the localisation's uncertainty: sigma_xy_m (m), or, when
         the position covariance is given (36 or 4 values, see :func:`xy_block`), its
-        sigma toward the border (:meth:`sigma`), which then replaces sigma_xy_m.
+        sigma toward the border (:meth:`sigma`), which then replaces sigma_xy_m. With a
+        localisation problem (:meth:`localisation_problem`) only turning on the spot
+        passes (REASON_TURNING_UNHEALTHY), anything else is stopped
+        (REASON_LOCALISATION); its text is the result's detail. Without a zone neither
+        matters: every finite command passes.
         """
+        if len(twist) != 3 or not _finite(*twist):
+            return GuardResult(0.0, REASON_INVALID_COMMAND)
         if self.zone is None:
-            if len(twist) != 3 or not _finite(*twist):
-                return GuardResult(0.0, REASON_INVALID_COMMAND)
             return GuardResult(1.0, REASON_CLEAR)
+        if localisation is not None:
+            if twist[0] == 0.0 and twist[1] == 0.0:
+                return GuardResult(1.0, REASON_TURNING_UNHEALTHY, detail=localisation.text)
+            return GuardResult(0.0, REASON_LOCALISATION, detail=localisation.text)
         if covariance is not None:
             sigma_xy_m = self.sigma(pose, twist, covariance)
         return guard_scale(self.zone, pose, twist, self.footprint_radius_m,

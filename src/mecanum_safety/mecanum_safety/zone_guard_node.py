@@ -13,30 +13,57 @@ motor_params.yaml, declared read-only with the robot's other parameters) at leas
 motion predicted for ``horizon_s`` (1.0 s). The margin is ``margin_m`` (0.05 m) +
 ``covariance_factor`` (2.0) x the localisation's position standard deviation toward the
 border (along the normals of the border edges within reach, the worst direction near a
-vertex; of the x-y covariance of ``pose_covariance_topic``, 'amcl_pose',
-geometry_msgs/PoseWithCovarianceStamped, latched; '' = none), at most ``max_margin_m``
-(0.5 m).
+vertex; of the x-y covariance of ``pose_covariance_topic``, 'amcl_pose' (amcl; SLAM's is
+'pose'), geometry_msgs/PoseWithCovarianceStamped; '' = none), at most ``max_margin_m``
+(0.5 m). That topic is read with a transient-local subscription (amcl's latched
+amcl_pose, also after a restart of this node) and a volatile one (slam_toolbox's pose
+is volatile: a transient-local subscription does not match it); a message heard on
+both is taken once. Outside the zone (the footprint across its border) only motion
+back in passes (see :mod:`mecanum_safety.zone_guard`).
+
+The localisation's health: while the last message on ``pose_covariance_topic`` has NaN
+or inf in its pose or covariance, a covariance that is not symmetric positive
+semi-definite, or a position standard deviation above ``max_position_sigma_m`` (0.25
+m), every command that moves the footprint is replaced by zero ('STOP localisation
+unhealthy: <why>'); turning on the spot passes (it does not move the footprint circle,
+and amcl updates after turning). The next healthy message lifts it. There is no timeout
+on that topic: amcl publishes only after the robot moved (update_min_d, update_min_a),
+so a robot standing still hears nothing; the pose's freshness is the /tf chain's
+(pose_timeout_s), which amcl and SLAM refresh at every scan. Before any message the
+localisation counts as healthy (margin_m alone).
 
 The zone is read once from ``zone_file`` (a standalone zone file, see zones/apartment.yaml;
-'' = no zone declared: every command passes unchanged). The robot's pose is the latest
-``global_frame`` ('map') -> ``robot_base_frame`` ('base_link') transform from /tf and
-/tf_static (map -> odom from amcl or SLAM, odom -> base_link from the EKF); lookups never
-wait. Its age is the node clock's now minus the oldest stamp in the chain (amcl's
-future-dated map -> odom is fine). With no transform, or one older than
-``pose_timeout_s`` (0.5 s), every command is replaced by zero (a throttled warning says
-why). Whatever the pose, a non-finite command is replaced by zero and a command that is
+'unrestricted' = no zone, on purpose; '' = none declared: every command passes
+unchanged, unless ``require_zone`` (false; the real robot's launch sets it) is true:
+then every command is replaced by zero ('STOP no zone file: ...'), the log saying how
+to give one). The robot's pose is the latest ``global_frame`` ('map') ->
+``robot_base_frame`` ('base_link') transform from /tf and /tf_static (map -> odom from
+amcl or SLAM, odom -> base_link from the EKF); lookups never wait. Its age is the node
+clock's now minus the oldest stamp in the chain (amcl's future-dated map -> odom is
+fine: it is never the oldest while the EKF runs). With no transform, one older than
+``pose_timeout_s`` (0.5 s), or one whose oldest link is stamped more than
+``pose_timeout_s`` in the future (a clock mismatch: such a pose would stay "fresh" long
+after its publisher stopped), every command is replaced by zero (a throttled warning
+says why). A NaN transform is refused by the transform listener (the pose then ages
+out). Whatever the pose, a non-finite command is replaced by zero and a command that is
 exactly zero passes.
 
 ``state_topic`` ('zone_guard_state', std_msgs/String, transient local; '' = none) says
 what was done to the last command: 'ALLOW', 'SCALE 0.42 (0.31 m from the border)' (the
-footprint's distance to it), 'STOP at the border', 'STOP outside the zone', 'STOP no
-pose: ...', 'STOP invalid command', 'ALLOW zero command (no pose)', 'ALLOW no zone
-declared'; published when the kind of state changes (its words, not its numbers) and at
+footprint's distance to it), 'STOP at the border', 'STOP outside the zone', 'ALLOW back
+into the zone', 'SCALE 0.42 back into the zone (0.05 m over the border)', 'ALLOW
+turning on the spot outside the zone', 'STOP localisation unhealthy: ...', 'ALLOW
+turning on the spot (localisation unhealthy: ...)', 'ALLOW zero command (localisation
+unhealthy: ...)', 'STOP no pose: ...', 'STOP invalid command', 'ALLOW zero command (no
+pose)', 'ALLOW no zone declared', 'ALLOW unrestricted (no zone)', 'STOP no zone file:
+...'; published when the kind of state changes (its words, not its numbers) and at
 most every ``STATE_PERIOD_S`` while it does not. ``/diagnostics``
 (diagnostic_msgs/DiagnosticArray, every second): OK (allowing), WARN (scaling, or no
-pose while idle), ERROR (stopping), with the reason, the pose's age and the margin.
+pose or an unhealthy localisation while idle), ERROR (stopping), with the reason, the
+pose's age, the localisation's health and the margin.
 """
 
+from collections import deque
 import math
 import sys
 import time
@@ -52,6 +79,8 @@ from mecanum_localization.tf_listener import TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
 from mecanum_safety import zone_guard as guard
 from mecanum_safety.zone import load_zone_file, Zone, ZoneError
+import numpy as np
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
@@ -65,9 +94,14 @@ WARNING_PERIOD_S = 2.0
 #: Seconds between two log lines announcing the same kind of state (a command hovering
 #: between two kinds would log every command otherwise).
 STATE_LOG_PERIOD_S = 1.0
-#: A pose stamped further than this in the future (s) is not trusted (a clock mismatch).
-MAX_FUTURE_S = 5.0
+#: zone_file value that declares, on purpose, that there is no zone.
+UNRESTRICTED = 'unrestricted'
+#: Messages taken on one pose-covariance subscription and not yet heard on the other,
+#: remembered to take each once (a volatile publisher never reaches the other one).
+PENDING_COVARIANCES = 8
 DIAGNOSTIC_NAME = 'zone_guard: Authorised zone'
+NO_ZONE_FILE = ('no zone file: give zone_file:=<zone file> (see mecanum_safety/zones) or '
+                'zone_file:=unrestricted')
 
 
 def _components(msg: Twist) -> Tuple[float, ...]:
@@ -102,7 +136,8 @@ class ZoneGuardNode(Node):
                              f'both are {self.global_frame!r}')
         numbers = {name: declare_typed(self, name, default) for name, default in (
             ('horizon_s', 1.0), ('margin_m', 0.05), ('covariance_factor', 2.0),
-            ('max_margin_m', 0.5))}
+            ('max_margin_m', 0.5), ('max_position_sigma_m', 0.25))}
+        self.require_zone = declare_typed(self, 'require_zone', False)
         self.pose_timeout_s = declare_typed(self, 'pose_timeout_s', 0.5)
         if not (math.isfinite(self.pose_timeout_s) and self.pose_timeout_s > 0.0):
             raise ValueError(f'parameter pose_timeout_s must be a finite number > 0, got '
@@ -115,7 +150,10 @@ class ZoneGuardNode(Node):
             if not topic:
                 raise ValueError(f'parameter {name} must not be empty')
         zone: Optional[Zone] = None
-        if self.zone_file:
+        self.unrestricted = self.zone_file.strip() == UNRESTRICTED
+        # The real robot (require_zone) never drives without a zone unless told so.
+        self.zone_missing = self.require_zone and not self.zone_file.strip()
+        if self.zone_file and not self.unrestricted:
             try:
                 zone = load_zone_file(self.zone_file)
             except ZoneError as error:   # names the file and the key
@@ -131,6 +169,11 @@ class ZoneGuardNode(Node):
         self.covariance = None         # the last pose covariance heard (36 values)
         self.sigma_used_m = 0.0        # sigma toward the border of the last command
         self.covariance_count = 0
+        # What is wrong with the localisation (None: healthy, or nothing heard yet).
+        self.localisation: Optional[guard.LocalisationProblem] = None
+        # Per subscription, the messages the other one took that it will hear too.
+        self._pending = (deque(maxlen=PENDING_COVARIANCES),
+                         deque(maxlen=PENDING_COVARIANCES))
         self.commands = 0
         self._state = ('', '')         # (kind, text) of the last command's state
         self._state_published_at = -math.inf
@@ -143,13 +186,26 @@ class ZoneGuardNode(Node):
                           if state_topic else None)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.tf_listener = TransformListener(self, self.frames)
-        self.covariance_sub = (
-            self.create_subscription(PoseWithCovarianceStamped, covariance_topic,
-                                     self.on_pose_covariance, latched)
-            if covariance_topic else None)
+        self.covariance_topic = covariance_topic
+        self.covariance_subs = []
+        if covariance_topic:
+            # amcl's amcl_pose is latched (transient local: heard after a restart too);
+            # slam_toolbox's pose is volatile, which a transient-local subscription does
+            # not match (quietly: that is what the volatile one is for).
+            quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _event: None)
+            self.covariance_subs = [
+                self.create_subscription(PoseWithCovarianceStamped, covariance_topic,
+                                         lambda msg: self.on_pose_covariance(msg, 0),
+                                         latched, event_callbacks=quiet),
+                self.create_subscription(PoseWithCovarianceStamped, covariance_topic,
+                                         lambda msg: self.on_pose_covariance(msg, 1), 10)]
         self.cmd_sub = self.create_subscription(Twist, cmd_in, self.on_command, 10)
         self.diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
-        if zone is None:
+        if self.zone_missing:
+            zone_text = 'NO ZONE FILE: every command is stopped'
+        elif self.unrestricted:
+            zone_text = 'no zone: zone_file:=unrestricted (driving without a zone on purpose)'
+        elif zone is None:
             zone_text = ('no zone declared (zone_file empty)' if not self.zone_file
                          else f'no zone declared in {self.zone_file}')
         else:
@@ -160,7 +216,16 @@ class ZoneGuardNode(Node):
             f'{zone_text}; footprint {self.guard.footprint_radius_m:g} m, margin '
             f'{self.guard.margin_m:g} m (+ {self.guard.covariance_factor:g} sigma, at most '
             f'{self.guard.max_margin_m:g} m), horizon {self.guard.horizon_s:g} s; pose '
-            f'{self.global_frame} -> {self.base_frame} within {self.pose_timeout_s:g} s')
+            f'{self.global_frame} -> {self.base_frame} within {self.pose_timeout_s:g} s; '
+            f'localisation health from '
+            f'{self.covariance_subs[0].topic_name if self.covariance_subs else "nothing"} '
+            f'(position sigma at most {self.guard.max_position_sigma_m:g} m)')
+        if self.zone_missing:
+            self.get_logger().error(
+                'zone_file is empty and require_zone is true (the real robot): every '
+                'command is stopped. Give the authorised zone, zone_file:=/path/to/zone.yaml '
+                '(a zone file in the map frame, like mecanum_safety zones/apartment.yaml), '
+                'or drive without one on purpose: zone_file:=unrestricted')
 
     # -- helpers ------------------------------------------------------------------------
 
@@ -192,10 +257,12 @@ class ZoneGuardNode(Node):
                               '(localisation lost?)'), (
                     f'{chain} is {age:.2f} s old (its oldest link {oldest[1]}), more than '
                     f'pose_timeout_s {self.pose_timeout_s:g} s')
-            if age < -MAX_FUTURE_S:
+            if age < -self.pose_timeout_s:
+                # It would stay "fresh" that much longer after its publisher stopped.
                 return None, f'no pose: {chain} stamped in the future (clock mismatch?)', (
                     f'{chain} is stamped {-age:.2f} s in the future (its oldest link '
-                    f'{oldest[1]}): a clock mismatch?')
+                    f'{oldest[1]}), more than pose_timeout_s {self.pose_timeout_s:g} s: '
+                    'a clock mismatch?')
         return (transform.x, transform.y, transform.yaw), '', ''
 
     def _set_state(self, kind: str, text: str, level: bytes) -> None:
@@ -213,15 +280,45 @@ class ZoneGuardNode(Node):
 
     # -- callbacks ----------------------------------------------------------------------
 
-    def on_pose_covariance(self, msg: PoseWithCovarianceStamped) -> None:
-        """Keep the localisation's position uncertainty (worst direction, m)."""
+    def on_pose_covariance(self, msg: PoseWithCovarianceStamped, source: int = 0) -> None:
+        """
+        Keep the localisation's position uncertainty (worst direction, m) and health.
+
+        source: which subscription heard it (0 transient local, 1 volatile); a message
+        the other one already took is skipped.
+        """
+        pose = msg.pose.pose
+        position = (pose.position.x, pose.position.y, pose.position.z)
+        orientation = (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+                       pose.orientation.w)
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id,
+               np.array(position + orientation + tuple(msg.pose.covariance)).tobytes())
+        if key in self._pending[source]:
+            self._pending[source].remove(key)
+            return   # the same message, already taken from the other subscription
+        self._pending[1 - source].append(key)
         sigma = guard.sigma_xy(msg.pose.covariance)
-        if not math.isfinite(sigma):
-            self._warn('covariance', f'unusable pose covariance (sigma_xy {sigma}): using '
-                       f'max_margin_m {self.guard.max_margin_m:g} m')
         self.sigma_xy_m = sigma
         self.covariance = tuple(msg.pose.covariance)
         self.covariance_count += 1
+        problem = self.guard.localisation_problem(position, orientation, msg.pose.covariance)
+        previous, self.localisation = self.localisation, problem
+        topic = self.covariance_subs[0].topic_name
+        if problem is not None:
+            if previous is None or previous.kind != problem.kind:
+                self._warnings.ready(f'localisation {problem.kind}')   # this is the warning
+                self.get_logger().warning(
+                    f'localisation unhealthy ({topic}): {problem.text}: stopping every '
+                    'motion but turning on the spot until it is healthy again (give a '
+                    'closer initial pose, e.g. RViz 2D Pose Estimate, or turn on the spot '
+                    'so that amcl updates)')
+            else:
+                self._warn(f'localisation {problem.kind}',
+                           f'localisation still unhealthy ({topic}): {problem.text}')
+        elif previous is not None:
+            self.get_logger().info(
+                f'localisation healthy again ({topic}): position sigma {sigma:.3f} m; '
+                'commands pass')
 
     def on_command(self, msg: Twist) -> None:
         """Publish the allowed twist for one command and the state."""
@@ -233,9 +330,19 @@ class ZoneGuardNode(Node):
             self._set_state('STOP invalid', f'STOP {guard.REASON_INVALID_COMMAND}',
                             DiagnosticStatus.ERROR)
             return
+        if self.zone_missing:
+            self.cmd_pub.publish(Twist())
+            self._warn('no zone file', f'{NO_ZONE_FILE}: stopping')
+            self._set_state('STOP no zone file', f'STOP {NO_ZONE_FILE}',
+                            DiagnosticStatus.ERROR)
+            return
         if self.guard.zone is None:
             self.cmd_pub.publish(msg)
-            self._set_state('ALLOW none', 'ALLOW no zone declared', DiagnosticStatus.OK)
+            if self.unrestricted:
+                self._set_state('ALLOW unrestricted', 'ALLOW unrestricted (no zone)',
+                                DiagnosticStatus.OK)
+            else:
+                self._set_state('ALLOW none', 'ALLOW no zone declared', DiagnosticStatus.OK)
             return
         pose, reason, explanation = self.robot_pose()
         if pose is None:
@@ -248,6 +355,10 @@ class ZoneGuardNode(Node):
             self._set_state(f'STOP {reason}', f'STOP {reason}', DiagnosticStatus.ERROR)
             return
         twist = (msg.linear.x, msg.linear.y, msg.angular.z)
+        problem = self.localisation
+        if problem is not None:
+            self._command_while_unhealthy(msg, values, pose, twist, problem)
+            return
         if self.covariance is not None:
             self.sigma_used_m = self.guard.sigma(pose, twist, self.covariance)
         else:
@@ -256,15 +367,51 @@ class ZoneGuardNode(Node):
         self._last_result = result
         if all(v == 0.0 for v in values) or result.scale >= 1.0:
             self.cmd_pub.publish(msg)
-            self._set_state('ALLOW', 'ALLOW', DiagnosticStatus.OK)
+            if result.reason in (guard.REASON_BACK_IN, guard.REASON_TURNING_OUTSIDE) \
+                    and not all(v == 0.0 for v in values):
+                self._set_state(f'ALLOW {result.reason}', f'ALLOW {result.reason}',
+                                DiagnosticStatus.WARN)
+            else:
+                self._set_state('ALLOW', 'ALLOW', DiagnosticStatus.OK)
             return
         self.cmd_pub.publish(_scaled(msg, result.scale))
-        if result.scale > 0.0:
-            gap = result.gap_m(self.guard.footprint_radius_m)
+        gap = result.gap_m(self.guard.footprint_radius_m)
+        if result.scale > 0.0 and result.reason == guard.REASON_BACK_IN:
+            self._set_state('SCALE back', f'SCALE {result.scale:.2f} {result.reason} '
+                            f'({-gap:.2f} m over the border)', DiagnosticStatus.WARN)
+        elif result.scale > 0.0:
             self._set_state('SCALE', f'SCALE {result.scale:.2f} ({gap:.2f} m from the border)',
                             DiagnosticStatus.WARN)
         else:
+            if result.reason == guard.REASON_OUTSIDE:
+                self._warn('outside', f'the footprint is {-gap:.2f} m over the border of the '
+                           'authorised zone: only motion back into it passes, stopping')
             self._set_state(f'STOP {result.reason}', f'STOP {result.reason}',
+                            DiagnosticStatus.ERROR)
+
+    def _command_while_unhealthy(self, msg: Twist, values: Tuple[float, ...],
+                                 pose: Tuple[float, float, float],
+                                 twist: Tuple[float, float, float],
+                                 problem: guard.LocalisationProblem) -> None:
+        """Stop every command but turning on the spot; the state says why."""
+        result = self.guard.step(pose, twist, localisation=problem)
+        self._last_result = result
+        if all(v == 0.0 for v in values):
+            self.cmd_pub.publish(msg)
+            self._set_state('ALLOW zero unhealthy',
+                            f'ALLOW zero command ({guard.REASON_LOCALISATION}: {problem.kind})',
+                            DiagnosticStatus.WARN)
+        elif result.scale >= 1.0:
+            self.cmd_pub.publish(msg)
+            self._set_state(f'ALLOW turning unhealthy: {problem.kind}',
+                            f'ALLOW turning on the spot ({guard.REASON_LOCALISATION}: '
+                            f'{problem.text})', DiagnosticStatus.WARN)
+        else:
+            self.cmd_pub.publish(Twist())
+            self._warn(f'stop {problem.kind}', f'{guard.REASON_LOCALISATION}: {problem.text}: '
+                       'stopping')
+            self._set_state(f'STOP {guard.REASON_LOCALISATION}: {problem.kind}',
+                            f'STOP {guard.REASON_LOCALISATION}: {problem.text}',
                             DiagnosticStatus.ERROR)
 
     def publish_diagnostics(self) -> None:
@@ -272,8 +419,15 @@ class ZoneGuardNode(Node):
         level, message = self._level, self._state[1] or 'no command yet'
         values = [KeyValue(key='zone file', value=self.zone_file or '(none)'),
                   KeyValue(key='commands', value=str(self.commands))]
+        if self.zone_missing:
+            level, message = DiagnosticStatus.ERROR, f'STOP {NO_ZONE_FILE}'
         if self.guard.zone is not None:
             pose, reason, _ = self.robot_pose()
+            health = (f'{guard.REASON_LOCALISATION}: {self.localisation.text}'
+                      if self.localisation is not None else 'healthy')
+            values.append(KeyValue(key='localisation', value=health))
+            if self.localisation is not None and level == DiagnosticStatus.OK:
+                level, message = DiagnosticStatus.WARN, health
             if pose is None:
                 values.append(KeyValue(key='pose', value=reason))
                 if level == DiagnosticStatus.OK:

@@ -1,19 +1,31 @@
 """Hand-worked tests of mecanum_safety.twist_mux (ros-teleop/twist_mux's rules)."""
 
+import functools
 import math
 from pathlib import Path
 
+from mecanum_control.command_limits import AxisLimits, limit_scale, TwistLimits
+from mecanum_control.kinematics import inverse_kinematics, MecanumGeometry
+from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_safety.twist_mux import (
     Entry, non_finite_component, parse_entries, Step, TwistMux)
 import pytest
 import yaml
 
-CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'twist_mux.yaml'
+PACKAGE = Path(__file__).resolve().parents[1]
+CONFIG = PACKAGE / 'config' / 'twist_mux.yaml'
 GO = (0.3, 0.0, 0.0, 0.0, 0.0, 0.2)
+STOP = (0.0,) * 6
 NAV = Entry('navigation', 'cmd_vel_smoothed', 0.5, 10)
 TELEOP = Entry('teleop', 'cmd_vel_teleop', 0.5, 95)
 JOY = Entry('joystick', 'cmd_vel_joy', 0.5, 100)
 E_STOP = Entry('e_stop', 'emergency_stop', 0.0, 255)
+LATCH = Entry('e_stop_latched', 'emergency_stop_latched', 0.0, 255)
+ROBOT = load_robot_config(default_config_path())
+#: The robot's limits as twist_mux_node applies them (motor_params.yaml).
+ROBOT_LIMIT = functools.partial(
+    limit_scale, limits=TwistLimits.from_config(ROBOT), geometry=ROBOT.geometry,
+    max_wheel_speed_rad_s=ROBOT.max_wheel_speed_rad_s)
 
 
 def flatten(tree, prefix=''):
@@ -28,15 +40,15 @@ def flatten(tree, prefix=''):
     return flat
 
 
-def mux(*topics, locks=()):
+def mux(*topics, locks=(), limit=None):
     """Return a TwistMux of the given entries."""
-    return TwistMux(list(topics), list(locks))
+    return TwistMux(list(topics), list(locks), limit=limit)
 
 
 # -- parameters ---------------------------------------------------------------------------
 
 def test_the_project_config_parses_in_twist_mux_order():
-    """config/twist_mux.yaml: six topics sorted by name, one lock, no warnings."""
+    """config/twist_mux.yaml: six topics sorted by name, two locks, no warnings."""
     params = flatten(yaml.safe_load(CONFIG.read_text())['twist_mux']['ros__parameters'])
     topics, warnings = parse_entries('topics', params)
     locks, lock_warnings = parse_entries('locks', params)
@@ -49,7 +61,7 @@ def test_the_project_config_parses_in_twist_mux_order():
         Entry('teleop_keyboard', 'cmd_vel_teleop', 0.5, 95),
         Entry('text_commands', 'cmd_vel_text', 0.5, 50),
     ]
-    assert locks == [Entry('e_stop', 'emergency_stop', 0.0, 255)]
+    assert locks == [E_STOP, LATCH]
     assert params['use_stamped'] is False
     TwistMux(topics, locks)   # valid as a whole
 
@@ -272,9 +284,9 @@ def test_an_engaged_lock_masks_lower_priorities_and_sends_one_zero():
     assert core.topic_status('teleop', 0.2) == 'masked'
     assert core.lock_status('e_stop', 0.2) == 'engaged'
     assert core.lock_priority(0.2) == 255
-    # Released: the highest live source takes over at once (its next twist follows).
-    assert core.on_lock('e_stop', False, 0.3) == Step(False, False, 'teleop', True)
-    assert core.on_twist('teleop', GO, 0.35).forward
+    # Released: teleop, masked while it kept driving, is held until a new command.
+    assert core.on_lock('e_stop', False, 0.3) == Step(False, False, 'held teleop', True)
+    assert core.on_twist('teleop', GO, 0.35) == Step(False, False, 'held teleop', False)
 
 
 def test_a_lock_masks_only_strictly_lower_priorities():
@@ -308,7 +320,9 @@ def test_a_lock_with_a_timeout_engages_when_its_publisher_goes_quiet():
     assert core.on_twist('navigation', GO, 1.0).forward
     assert core.on_twist('navigation', GO, 1.5).forward      # lock 1.0 s old: still free
     assert core.update(1.51) == Step(False, True, 'locked by alive', True)
-    assert core.on_lock('alive', False, 1.6).state == 'navigation'
+    # Back: navigation, masked while live, must send a new command (a zero) first.
+    assert core.on_lock('alive', False, 1.6).state == 'held navigation'
+    assert core.on_twist('navigation', STOP, 1.7) == Step(True, False, 'navigation', True)
 
 
 def test_a_zero_timeout_lock_only_counts_its_value():
@@ -347,3 +361,138 @@ def test_a_clock_that_jumps_back_expires_the_inputs():
     core = mux(NAV)
     core.on_twist('navigation', GO, 100.0)
     assert core.update(1.0) == Step(False, True, 'none', True)
+
+
+# -- the robot's limits (issue 31: the chain judges the twist the wheels will run) -------
+
+def test_the_command_chain_launch_gives_twist_mux_the_robots_limits():
+    """command_chain.launch.yaml passes motor_params.yaml to twist_mux (one source)."""
+    launch = yaml.safe_load((PACKAGE / 'launch/command_chain.launch.yaml').read_text())
+    nodes = [item['node'] for item in launch['launch'] if 'node' in item]
+    mux_node = next(node for node in nodes if node['name'] == 'twist_mux')
+    files = [param['from'] for param in mux_node['param'] if 'from' in param]
+    assert '$(find-pkg-share mecanum_control)/config/motor_params.yaml' in files
+
+
+def test_an_over_limit_diagonal_is_scaled_as_a_whole():
+    """
+    (0.8, 0.8, 0) with 0.5 m/s per axis -> (0.5, 0.5, 0): factor 0.625, still 45 deg.
+
+    Its wheels then need (0.5 + 0.5) / 0.05 = 20 rad/s; with a 16 rad/s limit the
+    factor becomes 0.625 * 16 / 20 = 0.5: (0.4, 0.4, 0).
+    """
+    geometry = MecanumGeometry(0.05, 0.10, 0.15)
+    half = TwistLimits(AxisLimits(0.5, 1.0), AxisLimits(0.5, 1.0), AxisLimits(2.0, 4.0))
+    diagonal = (0.8, 0.8, 0.0, 0.0, 0.0, 0.0)
+    core = mux(NAV, limit=functools.partial(limit_scale, limits=half, geometry=geometry,
+                                            max_wheel_speed_rad_s=30.0))
+    step = core.on_twist('navigation', diagonal, 0.0)
+    assert step.forward and step.scale == pytest.approx(0.625)
+    core = mux(NAV, limit=functools.partial(limit_scale, limits=half, geometry=geometry,
+                                            max_wheel_speed_rad_s=16.0))
+    assert core.on_twist('navigation', diagonal, 0.0).scale == pytest.approx(0.5)
+
+
+def test_the_robots_own_limits_keep_direction():
+    """
+    motor_params.yaml (0.8 / 0.6 m/s, 2.5 rad/s, 28 rad/s, r 0.04 m, lx + ly 0.215 m).
+
+    (0.8, 0.8, 0): y ratio 0.75, then wheels 1.2 / 0.04 = 30 rad/s: 0.75 * 28 / 30 =
+    0.7 -> (0.56, 0.56, 0). A twist within the limits passes unchanged (factor 1).
+    """
+    core = mux(NAV, limit=ROBOT_LIMIT)
+    step = core.on_twist('navigation', (0.8, 0.8, 0.0, 0.0, 0.0, 0.0), 0.0)
+    assert step == Step(True, False, 'navigation', True, scale=pytest.approx(0.7))
+    assert core.on_twist('navigation', GO, 0.1) == Step(True, False, 'navigation', False)
+    out = [0.7 * v for v in (0.8, 0.8, 0.0)]
+    assert max(abs(w) for w in inverse_kinematics(ROBOT.geometry, *out)) == pytest.approx(28.0)
+
+
+def test_an_absurd_twist_is_rejected_not_scaled():
+    """
+    Beyond 10 x a limit: rejected as a NaN is (source silent, one zero), not run at full speed.
+
+    wz 30 rad/s > 10 x 2.5 rad/s; the text names the axis and the bound.
+    """
+    core = mux(NAV, limit=ROBOT_LIMIT)
+    core.on_twist('navigation', GO, 0.0)
+    absurd = (0.0, 0.0, 0.0, 0.0, 0.0, 30.0)
+    assert 'angular.z = 30 rad/s is absurd' in core.rejection(absurd)
+    assert core.rejection(GO) is None
+    assert core.rejection((math.nan,) + GO[1:]) == 'linear.x is nan'
+    assert core.on_twist('navigation', absurd, 0.1) == Step(False, True, 'none', True)
+    assert core.topic_status('navigation', 0.1) == 'silent'
+    assert core.on_twist('navigation', GO, 0.2).forward
+
+
+# -- after a lock: a new command (issue 31: a stale twist must not resume by itself) -------
+
+def test_the_estop_latch_holds_until_motor_controller_releases_then_a_new_command():
+    """
+    emergency_stop true, motor_controller latches; false: still locked (by the latch).
+
+    Released (emergency_stop_latched false) while navigation keeps driving: navigation
+    is held, its twists are not forwarded, until it sends a zero twist (a new command).
+    """
+    core = mux(NAV, TELEOP, locks=[E_STOP, LATCH])
+    assert core.on_twist('navigation', GO, 0.0).forward
+    assert core.on_lock('e_stop', True, 0.1) == Step(False, True, 'locked by e_stop', True)
+    core.on_lock('e_stop_latched', True, 0.11)
+    assert core.on_lock('e_stop', False, 0.5) == Step(
+        False, False, 'locked by e_stop_latched', True)
+    for t in (0.6, 0.7, 0.8):
+        assert core.on_twist('navigation', GO, t).forward is False
+    assert core.topic_status('navigation', 0.8) == 'masked'
+    # Cleared: navigation's stale stream stays held however long it goes on.
+    assert core.on_lock('e_stop_latched', False, 0.85) == Step(
+        False, False, 'held navigation', True)
+    for t in (0.9, 1.0, 1.5, 3.0):
+        assert core.on_twist('navigation', GO, t) == Step(
+            False, False, 'held navigation', False)
+    assert core.topic_status('navigation', 3.0) == 'held'
+    # A zero twist is a new command: forwarded, and so is everything after it.
+    assert core.on_twist('navigation', STOP, 3.1) == Step(True, False, 'navigation', True)
+    assert core.on_twist('navigation', GO, 3.2) == Step(True, False, 'navigation', False)
+
+
+def test_a_held_source_is_rearmed_by_falling_silent_not_by_a_nan():
+    """Held teleop: a NaN does not re-arm it; silence for its timeout (0.5 s) does."""
+    core = mux(NAV, TELEOP, locks=[E_STOP])
+    core.on_twist('teleop', GO, 0.0)
+    core.on_lock('e_stop', True, 0.1)
+    core.on_twist('teleop', GO, 0.2)
+    core.on_lock('e_stop', False, 0.3)
+    assert core.on_twist('teleop', (math.nan,) + GO[1:], 0.4).forward is False
+    assert core.on_twist('teleop', GO, 0.45) == Step(False, False, 'held teleop', False)
+    # Last accepted twist at 0.45: held until 0.95, free after.
+    assert core.update(0.95).state == 'held teleop'
+    assert core.update(0.96) == Step(False, False, 'none', True)
+    assert core.on_twist('teleop', GO, 1.0) == Step(True, False, 'teleop', True)
+
+
+def test_a_zero_during_the_lock_does_not_rearm_and_new_sources_pass_at_once():
+    """A zero while still locked re-arms nothing; a source silent during the lock is new."""
+    core = mux(NAV, TELEOP, locks=[E_STOP])
+    core.on_twist('navigation', GO, 0.0)
+    core.on_lock('e_stop', True, 0.1)
+    core.on_twist('navigation', STOP, 0.2)
+    core.on_twist('navigation', GO, 0.3)
+    assert core.on_lock('e_stop', False, 0.4).state == 'held navigation'
+    assert core.on_twist('navigation', GO, 0.45).forward is False
+    # Teleop did not drive before: its first twist is a new command.
+    assert core.on_twist('teleop', GO, 0.5) == Step(True, False, 'teleop', True)
+    assert core.topic_status('navigation', 0.5) == 'held'
+    assert core.state_at(0.5) == 'teleop'
+
+
+def test_a_source_above_the_lock_is_not_held():
+    """A lock masks only lower priorities, and holds only those."""
+    pause = Entry('pause', 'pause', 0.0, 95)
+    core = mux(NAV, TELEOP, locks=[pause])
+    core.on_twist('teleop', GO, 0.0)
+    core.on_twist('navigation', GO, 0.0)
+    core.on_lock('pause', True, 0.1)
+    assert core.on_twist('teleop', GO, 0.2).forward
+    core.on_lock('pause', False, 0.3)
+    assert core.on_twist('teleop', GO, 0.35).forward
+    assert core.topic_status('navigation', 0.35) == 'held'

@@ -70,21 +70,78 @@ def test_at_the_margin_toward_stops_away_and_along_pass():
     assert scale_of(SQUARE, at_margin, (0.0, -0.5, 0.0)) == (1.0, guard.REASON_CLEAR)
 
 
-def test_inside_the_margin_band_or_outside_moving_back_inward_is_allowed():
-    band = (3.85, 2.0, 0.0)                            # footprint 0.05 m from the border
-    assert scale_of(SQUARE, band, (-0.3, 0.0, 0.0))[0] == 1.0
-    assert scale_of(SQUARE, band, (0.0, 0.3, 0.0))[0] == 1.0     # along: clearance kept
+def test_inside_the_margin_band_any_motion_that_gets_no_nearer_is_allowed():
+    band = (3.78, 2.0, 0.0)          # footprint inside, 0.02 m from the border (< margin)
+    assert scale_of(SQUARE, band, (-0.3, 0.0, 0.0)) == (1.0, guard.REASON_CLEAR)
+    assert scale_of(SQUARE, band, (0.0, 0.3, 0.0)) == (1.0, guard.REASON_CLEAR)  # along
     assert scale_of(SQUARE, band, (0.1, 0.0, 0.0)) == (0.0, guard.REASON_AT_BORDER)
-    outside = (4.3, 2.0, 0.0)                          # the centre 0.3 m out
-    assert scale_of(SQUARE, outside, (-0.5, 0.0, 0.0)) == (1.0, guard.REASON_CLEAR)
-    assert scale_of(SQUARE, outside, (0.5, 0.0, 0.0)) == (0.0, guard.REASON_OUTSIDE)
 
 
-@pytest.mark.parametrize('pose', [(2.0, 2.0, 0.0), (3.75, 2.0, 1.0), (3.9, 3.9, -2.0),
-                                  (4.5, 2.0, 0.0)])
-def test_pure_rotation_is_always_allowed(pose):
-    assert scale_of(SQUARE, pose, (0.0, 0.0, 2.5)) == (
-        1.0, guard.REASON_CLEAR)
+# Outside the zone (the footprint crosses the border: clearance < RADIUS) the robot may
+# only move back in: every step must bring the footprint at least INWARD_MIN_SLOPE (0.1)
+# of its travel further in, until it is RADIUS + MARGIN (0.25 m) inside.
+OUTSIDE = (4.1, 2.0, 0.0)            # the centre 0.1 m out of the 4 m square (x = 4)
+
+
+@pytest.mark.parametrize('pose, twist, expected', [
+    (OUTSIDE, (-0.5, 0.0, 0.0), (1.0, guard.REASON_BACK_IN)),        # straight in
+    (OUTSIDE, (-0.3, 0.4, 0.0), (1.0, guard.REASON_BACK_IN)),        # slope 0.6
+    (OUTSIDE, (-0.1, 0.5, 0.0), (1.0, guard.REASON_BACK_IN)),        # slope 0.196
+    (OUTSIDE, (0.5, 0.0, 0.0), (0.0, guard.REASON_OUTSIDE)),         # outward
+    (OUTSIDE, (0.0, 0.5, 0.0), (0.0, guard.REASON_OUTSIDE)),         # parallel
+    (OUTSIDE, (0.0, -0.5, 0.0), (0.0, guard.REASON_OUTSIDE)),        # parallel
+    (OUTSIDE, (-0.02, 0.5, 0.0), (0.0, guard.REASON_OUTSIDE)),       # slope 0.04 < 0.1
+    ((4.1, 2.0, math.pi / 2), (0.0, 0.5, 0.0), (1.0, guard.REASON_BACK_IN)),  # west
+    # The centre inside (x = 3.85) but the footprint 0.05 m over the border: outside too.
+    ((3.85, 2.0, 0.0), (-0.3, 0.0, 0.0), (1.0, guard.REASON_BACK_IN)),
+    ((3.85, 2.0, 0.0), (0.0, 0.3, 0.0), (0.0, guard.REASON_OUTSIDE)),
+    ((3.85, 2.0, 0.0), (0.1, 0.0, 0.0), (0.0, guard.REASON_OUTSIDE)),
+    # Inside the excluded square of the room (centre 0.5 m from its edges): out east.
+    ((3.5, 2.0, 0.0), (0.5, 0.0, 0.0), (1.0, guard.REASON_BACK_IN)),
+])
+def test_outside_the_zone_only_motion_back_in_is_allowed(pose, twist, expected):
+    zone = ROOM_WITH_ISLAND if pose[:2] == (3.5, 2.0) else SQUARE
+    scale, reason = scale_of(zone, pose, twist)
+    assert (scale, reason) == (pytest.approx(expected[0], abs=1e-9), expected[1])
+
+
+def test_outside_an_arc_is_cut_where_it_stops_getting_back_in():
+    # From (4.1, 2) facing east, backing at 0.5 m/s while turning at 2 rad/s: the circle
+    # x = 4.1 - 0.25 sin(2t), so the clearance is -0.1 + 0.25 sin(2t) (x = 4 the nearest
+    # border) and grows by cos(2t) per metre of travel: at least 0.1 until
+    # t = acos(0.1) / 2 = 0.7353 s (1 s asked), still 0.05 m over the border there. The
+    # rule holds between samples 1 cm (0.02 s) apart: the cut is within one of them.
+    scale, reason = scale_of(SQUARE, OUTSIDE, (-0.5, 0.0, 2.0))
+    assert scale == pytest.approx(math.acos(0.1) / 2.0, abs=0.02)
+    assert reason == guard.REASON_BACK_IN
+
+
+def test_outside_a_corner_in_then_along_the_border_is_cut():
+    # From (4.1, 4.1), 0.1414 m from the corner (4, 4), west: the clearance is
+    # -sqrt(u^2 + 0.01) (u = x - 4), then -0.1 along the top edge (parallel, outside).
+    # It grows by u / sqrt(u^2 + 0.01) per metre: >= 0.1 while u >= 0.01 / sqrt(0.99),
+    # so 0.1 - 0.01005 m of the 0.5 m asked; between samples 1 cm apart (u = 0.02 to
+    # 0.01: +0.0015 m, u = 0.01 to 0: +0.0005 m) the last one kept is u = 0.01.
+    scale, reason = scale_of(SQUARE, (4.1, 4.1, 0.0), (-0.5, 0.0, 0.0))
+    assert 0.1 - 0.01 / math.sqrt(0.99) - 1e-6 <= scale * 0.5 <= 0.09 + 1e-6
+    assert reason == guard.REASON_BACK_IN
+
+
+def test_back_inside_the_motion_continues_to_the_margin_and_stops_there():
+    # Straight in from 0.1 m out, 2 m asked: in, then on to the far border (x = 0) until
+    # 0.25 m from it: 4.1 - 0.25 = 3.85 m of travel, like any motion from inside.
+    scale, reason = scale_of(SQUARE, OUTSIDE, (-4.0, 0.0, 0.0))
+    assert scale == pytest.approx(3.85 / 4.0, abs=1e-9)
+    assert reason == guard.REASON_BACK_IN
+
+
+@pytest.mark.parametrize('pose, reason', [
+    ((2.0, 2.0, 0.0), guard.REASON_CLEAR), ((3.75, 2.0, 1.0), guard.REASON_CLEAR),
+    ((3.9, 3.9, -2.0), guard.REASON_TURNING_OUTSIDE),
+    ((4.5, 2.0, 0.0), guard.REASON_TURNING_OUTSIDE)])
+def test_pure_rotation_is_always_allowed(pose, reason):
+    # The footprint circle about base_link does not move (inside or out).
+    assert scale_of(SQUARE, pose, (0.0, 0.0, 2.5)) == (1.0, reason)
 
 
 def test_a_concave_corner_counts_by_its_vertex():
@@ -185,6 +242,78 @@ def test_sigma_xy_is_the_larger_eigenvalue_of_the_position_block():
     assert guard.guard_margin(0.05, 2.0, math.nan, 0.5) == 0.5
 
 
+# --- the localisation's health --------------------------------------------------------
+
+MAX_SIGMA = 0.25     # max_position_sigma_m of config/zone_guard.yaml
+AT = (2.0, 2.0, 0.0)
+UPRIGHT = (0.0, 0.0, 0.0, 1.0)
+
+
+def covariance36(xx, xy, yx, yy, yaw=0.01):
+    """Return a 6x6 row-major pose covariance with this x-y block and yaw variance."""
+    values = [0.0] * 36
+    values[0], values[1], values[6], values[7], values[35] = xx, xy, yx, yy, yaw
+    return values
+
+
+AMCL_USUAL = covariance36(0.034 ** 2, 0.0001, 0.0001, 0.03 ** 2)
+
+
+@pytest.mark.parametrize('position, orientation, covariance', [
+    (AT, UPRIGHT, AMCL_USUAL),
+    (AT, UPRIGHT, [0.0] * 36),                               # SLAM publishes zeros
+    (AT, UPRIGHT, covariance36(0.25 ** 2, 0.0, 0.0, 0.01)),  # sigma exactly the limit
+    ((1e6, -3.0, 0.0), (0.0, 0.0, 0.7071, 0.7071), AMCL_USUAL),
+])
+def test_a_usual_localisation_is_healthy(position, orientation, covariance):
+    assert guard.localisation_problem(position, orientation, covariance, MAX_SIGMA) is None
+
+
+@pytest.mark.parametrize('position, orientation, covariance, kind, text', [
+    ((math.nan, 2.0, 0.0), UPRIGHT, AMCL_USUAL, 'NaN/inf in the pose',
+     'NaN/inf in the pose (position (nan, 2.0, 0.0), orientation (0.0, 0.0, 0.0, 1.0))'),
+    (AT, (0.0, 0.0, math.inf, 1.0), AMCL_USUAL, 'NaN/inf in the pose',
+     'NaN/inf in the pose (position (2.0, 2.0, 0.0), orientation (0.0, 0.0, inf, 1.0))'),
+    (AT, UPRIGHT, covariance36(0.01, 0.0, 0.0, 0.01, math.nan),
+     'NaN/inf in the covariance', 'NaN/inf in the covariance (1 of 36 values)'),
+    (AT, UPRIGHT, [math.inf] * 36, 'NaN/inf in the covariance',
+     'NaN/inf in the covariance (36 of 36 values)'),
+    (AT, UPRIGHT, covariance36(0.01, 0.002, 0.0, 0.01), 'covariance not symmetric',
+     'covariance not symmetric (largest difference 0.002 between [0][1] and [1][0])'),
+    # [[0.01, 0.02], [0.02, 0.01]]: eigenvalues 0.03 and -0.01.
+    (AT, UPRIGHT, covariance36(0.01, 0.02, 0.02, 0.01), 'covariance not positive '
+     'semi-definite', 'covariance not positive semi-definite (eigenvalue -0.01)'),
+    (AT, UPRIGHT, covariance36(-0.0004, 0.0, 0.0, 0.01), 'covariance not positive '
+     'semi-definite', 'covariance not positive semi-definite (eigenvalue -0.0004)'),
+    (AT, UPRIGHT, covariance36(0.3 ** 2, 0.0, 0.0, 0.01), 'position sigma too large',
+     'position sigma 0.30 m > max_position_sigma_m 0.25 m'),
+    # Each axis 0.2 m, but correlated: along the diagonal 0.04 + 0.03 = 0.07 m^2.
+    (AT, UPRIGHT, covariance36(0.04, 0.03, 0.03, 0.04), 'position sigma too large',
+     'position sigma 0.26 m > max_position_sigma_m 0.25 m'),
+])
+def test_an_unhealthy_localisation_is_named(position, orientation, covariance, kind, text):
+    problem = guard.localisation_problem(position, orientation, covariance, MAX_SIGMA)
+    assert (problem.kind, problem.text) == (kind, text)
+
+
+def test_an_unhealthy_localisation_stops_every_motion_but_turning_on_the_spot():
+    zone_guard = guard.ZoneGuard(SQUARE, RADIUS, max_position_sigma_m=MAX_SIGMA)
+    problem = zone_guard.localisation_problem(AT, UPRIGHT, covariance36(0.16, 0, 0, 0.16))
+    assert problem.text == 'position sigma 0.40 m > max_position_sigma_m 0.25 m'
+    result = zone_guard.step(AT, (0.3, 0.0, 0.0), localisation=problem)
+    assert (result.scale, result.reason, result.detail) == (
+        0.0, guard.REASON_LOCALISATION, problem.text)
+    assert zone_guard.step(AT, (0.3, 0.0, 1.0), localisation=problem).scale == 0.0
+    # Turning on the spot does not move the footprint circle (and lets amcl update).
+    result = zone_guard.step(AT, (0.0, 0.0, 1.0), localisation=problem)
+    assert (result.scale, result.reason) == (1.0, guard.REASON_TURNING_UNHEALTHY)
+    # Healthy again: the zone's rules only.
+    assert zone_guard.step(AT, (0.3, 0.0, 0.0), localisation=None).scale == 1.0
+    # Without a zone the localisation does not matter to the guard.
+    no_zone = guard.ZoneGuard(None, RADIUS)
+    assert no_zone.step(AT, (0.3, 0.0, 0.0), localisation=problem).scale == 1.0
+
+
 @pytest.mark.parametrize('twist', [(math.nan, 0.0, 0.0), (0.0, math.inf, 0.0),
                                    (0.0, 0.0, -math.inf), (0.1, 0.0)])
 def test_an_invalid_twist_stops(twist):
@@ -215,6 +344,8 @@ def test_the_result_reports_the_clearance():
     ({'covariance_factor': math.nan}, 'covariance_factor must be'),
     ({'max_margin_m': 0.01}, r'max_margin_m \(0.01\) must be >= margin_m \(0.05\)'),
     ({'margin_m': True}, 'margin_m must be'),
+    ({'max_position_sigma_m': 0.0}, 'max_position_sigma_m must be a finite number > 0'),
+    ({'max_position_sigma_m': math.nan}, 'max_position_sigma_m must be a finite number > 0'),
 ])
 def test_settings_are_checked_naming_them(kwargs, message):
     settings_ = {'footprint_radius_m': RADIUS, **kwargs}
@@ -304,6 +435,24 @@ def test_path_stays_inside_from_the_margin_allows_only_what_gets_no_nearer():
                                    RADIUS, MARGIN)[0]
     assert not guard.path_stays_inside(SQUARE, (4.1, 2.0, 0.0), 1.0, 0.0, 0.0, 1.0,
                                        RADIUS, MARGIN)[0]
+
+
+def test_path_stays_inside_from_outside_allows_only_motion_back_in():
+    # The guard's rule: from outside only what keeps bringing the footprint in (then
+    # keeps the margin), or turning on the spot.
+    assert guard.path_stays_inside(SQUARE, OUTSIDE, -1.0, 0.0, 0.0, 1.0, RADIUS,
+                                   MARGIN) == (True, '')
+    assert guard.path_stays_inside(SQUARE, OUTSIDE, 0.0, 0.0, 1.0, 3.0, RADIUS,
+                                   MARGIN) == (True, '')
+    inside, reason = guard.path_stays_inside(SQUARE, OUTSIDE, 0.0, 0.5, 0.0, 1.0, RADIUS,
+                                             MARGIN)
+    assert not inside
+    assert reason.startswith('the footprint is 0.30 m out of the authorised zone and would '
+                             'not be getting back in at (4.10, 2.01) after 0.02 s')
+    # In, then on past the far border's margin: refused where it gets within 0.25 m.
+    inside, reason = guard.path_stays_inside(SQUARE, OUTSIDE, -1.0, 0.0, 0.0, 4.0, RADIUS,
+                                             MARGIN)
+    assert not inside and 'within 0.05 m of the border' in reason and '(0.24, 2.00)' in reason
 
 
 def test_path_stays_inside_refuses_an_invalid_motion():
@@ -417,3 +566,48 @@ def test_a_closed_loop_never_leaves_the_zone(zone, seed, twist, margin, horizon)
         assert along.min() >= RADIUS - SAMPLING_TOLERANCE_M, 'the footprint left the zone'
         assert along.min() >= floor - SAMPLING_TOLERANCE_M
         pose = integrate_pose(*pose, *scaled, dt)
+
+
+#: How far the clearance can fall back between two samples 1 cm apart that keep the
+#: outside rule (gain >= 0.1 x 1 cm): up at slope 1 for 5.5 mm, down for 4.5 mm.
+FALL_BACK_M = (1.0 - guard.INWARD_MIN_SLOPE) / 2.0 * guard.SAMPLE_STEP_M + SAMPLING_TOLERANCE_M
+
+
+def outside_pose(zone, seed, radius):
+    """Return a pose whose footprint crosses the border (centre at most 0.5 m out)."""
+    rng = random.Random(seed)
+    for _ in range(4000):
+        x, y = rng.uniform(-4.5, 4.5), rng.uniform(-4.5, 4.5)
+        if -0.5 <= zone.clearance([x], [y])[0] < radius:
+            return x, y, rng.uniform(-math.pi, math.pi)
+    return None
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(zone=zones(), seed=st.integers(0, 2 ** 32 - 1), twist=twists,
+       radius=st.floats(0.1, 0.3), margin=st.floats(0.0, 0.2), horizon=st.floats(0.3, 2.0))
+def test_from_outside_the_allowed_motion_only_gets_back_in(zone, seed, twist, radius, margin,
+                                                           horizon):
+    pose = outside_pose(zone, seed, radius)
+    assume(pose is not None)
+    result = guard.guard_scale(zone, pose, twist, radius, margin, horizon)
+    start = float(zone.clearance([pose[0]], [pose[1]])[0])
+    moves = twist[0] != 0.0 or twist[1] != 0.0
+    if not moves:
+        assert result.scale == 1.0     # on the spot (or nothing): the footprint stays
+        return
+    assert result.reason in (guard.REASON_BACK_IN, guard.REASON_OUTSIDE)
+    assert (result.scale > 0.0) == (result.reason == guard.REASON_BACK_IN)
+    if result.scale == 0.0:
+        return
+    scaled = tuple(result.scale * v for v in twist)
+    along = dense_clearances(zone, pose, scaled, horizon)
+    # Never further out than the start, nor than the best so far (until radius + margin
+    # in) by more than a path can fall back between two samples 1 cm apart (crossing a
+    # ridge of the distance, e.g. the middle of an exclusion: up 5.5 mm, down 4.5 mm);
+    # and the end is further in than the start (unless it does not move at all).
+    assert along.min() >= start - SAMPLING_TOLERANCE_M
+    best = np.maximum.accumulate(along)
+    assert np.all(along >= np.minimum(radius + margin, best) - FALL_BACK_M)
+    if math.hypot(*scaled[:2]) * horizon > 1e-6:
+        assert along[-1] > start

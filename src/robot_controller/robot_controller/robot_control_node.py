@@ -184,7 +184,8 @@ class RobotController(Node):
         self.pose_timeout_s = _positive('pose_timeout_s',
                                         declare_typed(self, 'pose_timeout_s', 1.0))
         # ZoneError (a ValueError) names the file and what is wrong with it.
-        self.zone = load_zone_file(self.zone_file) if self.zone_file else None
+        self.zone = (load_zone_file(self.zone_file)   # 'unrestricted': no zone, on purpose
+                     if self.zone_file and self.zone_file != 'unrestricted' else None)
         if self.zone_file and self.zone is None:
             self.get_logger().info(f'{self.zone_file} declares no authorised zone: '
                                    'commands are not checked against one')

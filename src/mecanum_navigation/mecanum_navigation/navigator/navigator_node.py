@@ -297,7 +297,7 @@ class NavigatorNode(Node):
     @staticmethod
     def _load_zone(zone_file: str) -> Optional[Zone]:
         """Load the zone file ('' = no zone); a malformed one raises naming file and key."""
-        if not zone_file:
+        if not zone_file or zone_file.strip() == 'unrestricted':   # no zone, on purpose
             return None
         try:
             return load_zone_file(zone_file)

@@ -1,0 +1,146 @@
+"""
+Unit tests of mecanum_control.publisher_check: who publishes a topic that should not.
+
+Publishers are given as rclpy's get_publishers_info_by_topic reports them: (node name,
+node namespace) pairs, with rmw's placeholder names for an endpoint whose node is not
+(yet) known.
+"""
+
+from mecanum_control.publisher_check import (
+    parse_expected_publishers, PublisherCheck, qualified_name, unexpected_publishers,
+    UNKNOWN_NAMESPACE, UNKNOWN_NODE_NAME)
+import pytest
+
+UNKNOWN = (UNKNOWN_NODE_NAME, UNKNOWN_NAMESPACE)
+
+
+@pytest.mark.parametrize('value, expected', [
+    ('', ()),
+    (None, ()),
+    ([], ()),
+    ('zone_guard', ('zone_guard',)),
+    (' zone_guard , teleop ', ('zone_guard', 'teleop')),
+    ('zone_guard teleop', ('zone_guard', 'teleop')),
+    (['zone_guard', '/robot1/teleop'], ('zone_guard', '/robot1/teleop')),
+    ('robot1/zone_guard', ('robot1/zone_guard',)),
+])
+def test_parameter_values_give_node_names(value, expected):
+    assert parse_expected_publishers('cmd_vel_publishers', value) == expected
+
+
+@pytest.mark.parametrize('value, message', [
+    ('zone-guard', "cmd_vel_publishers: 'zone-guard' is not a node name"),
+    ('2guard', "cmd_vel_publishers: '2guard' is not a node name"),
+    ('/robot1/', "cmd_vel_publishers: '/robot1/' is not a node name"),
+    ([1, 2], 'cmd_vel_publishers: 1 is not a node name'),
+    (3.0, 'cmd_vel_publishers must be node names'),
+])
+def test_bad_parameter_values_are_refused_naming_the_parameter(value, message):
+    with pytest.raises(ValueError, match=message):
+        parse_expected_publishers('cmd_vel_publishers', value)
+
+
+def test_names_resolve_against_the_watching_nodes_namespace():
+    assert qualified_name('zone_guard', '/') == '/zone_guard'
+    assert qualified_name('zone_guard', '/robot1') == '/robot1/zone_guard'
+    assert qualified_name('chain/zone_guard', '/robot1') == '/robot1/chain/zone_guard'
+    assert qualified_name('/other/zone_guard', '/robot1') == '/other/zone_guard'
+
+
+def test_only_publishers_outside_the_expected_set_are_unexpected():
+    publishers = [('zone_guard', '/'), ('rogue', '/'), ('zone_guard', '/robot1'),
+                  ('rogue', '/')]
+    assert unexpected_publishers(['zone_guard'], publishers, '/') == [
+        '/robot1/zone_guard', '/rogue']
+    assert unexpected_publishers(['zone_guard'], publishers, '/robot1') == [
+        '/rogue', '/zone_guard']
+    assert unexpected_publishers(['zone_guard', 'rogue', '/robot1/zone_guard'],
+                                 publishers) == []
+    # Two publishers of the expected node (a respawned node whose old endpoint is not
+    # yet gone) are not an intrusion.
+    assert unexpected_publishers(['zone_guard'], [('zone_guard', '/')] * 2) == []
+
+
+def test_an_empty_expectation_means_no_check():
+    check = PublisherCheck('/cmd_vel_safe', ())
+    assert not check.enabled
+    assert check.update([('rogue', '/')]) is None
+    assert not check.stopped
+
+
+def test_an_unexpected_publisher_stops_until_it_is_gone():
+    check = PublisherCheck('/cmd_vel_safe', ['zone_guard'], '/', 'wheels held at zero')
+    assert check.enabled
+    assert check.update([]) is None
+    assert check.update([('zone_guard', '/')]) is None
+    assert not check.stopped and check.level == 'ok'
+
+    assert check.update([('zone_guard', '/'), ('teleop_keyboard', '/')]) == 'stop'
+    assert check.stopped and check.level == 'error'
+    assert check.intruders == ('/teleop_keyboard',)
+    assert check.message == (
+        '/cmd_vel_safe has unexpected publisher(s): /teleop_keyboard (expected only '
+        '/zone_guard); wheels held at zero until they are gone')
+    assert check.update([('zone_guard', '/'), ('teleop_keyboard', '/')]) is None
+
+    # A second intruder is news (logged again); the first leaving too.
+    assert check.update([('teleop_keyboard', '/'), ('rogue', '/')]) == 'stop'
+    assert check.intruders == ('/rogue', '/teleop_keyboard')
+    assert check.update([('rogue', '/')]) == 'stop'
+    assert check.intruders == ('/rogue',)
+
+    assert check.update([('zone_guard', '/')]) == 'resume'
+    assert not check.stopped and check.intruders == ()
+    assert check.departed == ('/rogue',)
+    assert check.gone_message == '/cmd_vel_safe: unexpected publisher(s) /rogue gone; resuming'
+    assert check.message == '/cmd_vel_safe: publishers as expected (/zone_guard)'
+    assert check.update([]) is None
+
+
+def test_resuming_can_wait_for_several_clean_checks():
+    check = PublisherCheck('/motor_efforts', ['velocity_controller'], resume_after=2)
+    assert check.update([('rogue', '/')]) == 'stop'
+    assert check.update([]) is None    # gone once: still stopped
+    assert check.stopped
+    assert check.update([('rogue', '/')]) is None   # back: counts again from zero
+    assert check.update([]) is None
+    assert check.update([]) == 'resume'
+    assert check.departed == ('/rogue',) and not check.stopped
+    with pytest.raises(ValueError, match='resume_after must be >= 1, got 0'):
+        PublisherCheck('/motor_efforts', ['velocity_controller'], resume_after=0)
+
+
+def test_a_publisher_without_a_node_name_counts_once_seen_twice_in_a_row():
+    """An endpoint whose node rmw has not discovered yet has placeholder names."""
+    check = PublisherCheck('/motor_efforts', ['velocity_controller'])
+    assert check.update([('velocity_controller', '/'), UNKNOWN]) is None
+    assert not check.stopped
+    assert check.update([('velocity_controller', '/')]) is None   # it was discovery
+    assert check.update([UNKNOWN]) is None
+    assert check.update([UNKNOWN]) == 'stop'  # a DDS participant that is no ROS node
+    assert check.intruders == ('(an endpoint of no known ROS node)',)
+    assert check.update([]) == 'resume'
+
+
+def test_rclpy_endpoint_infos_are_taken_as_they_come():
+    class Info:
+
+        def __init__(self, node_name, node_namespace):
+            self.node_name, self.node_namespace = node_name, node_namespace
+    check = PublisherCheck('/motor_efforts', ['velocity_controller'], '/', 'efforts zero',
+                           'efforts from velocity_controller again')
+    assert check.update([Info('velocity_controller', '/'), Info('rogue', '/')]) == 'stop'
+    assert check.intruders == ('/rogue',)
+    assert check.update([Info('velocity_controller', '/')]) == 'resume'
+    assert check.gone_message == ('/motor_efforts: unexpected publisher(s) /rogue gone; '
+                                  'efforts from velocity_controller again')
+
+
+def test_status_values_for_diagnostics():
+    check = PublisherCheck('/motor_speeds', ['motor_controller'], '/', 'efforts zero')
+    check.update([('motor_controller', '/'), ('rogue', '/')])
+    assert dict(check.values) == {'topic': '/motor_speeds',
+                                  'expected_publishers': '/motor_controller',
+                                  'unexpected_publishers': '/rogue'}
+    check.update([('motor_controller', '/')])
+    assert dict(check.values)['unexpected_publishers'] == ''
