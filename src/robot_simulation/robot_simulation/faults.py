@@ -56,7 +56,8 @@ FAULT_KINDS: Dict[str, FaultKind] = {kind.name: kind for kind in (
     FaultKind('encoder_stuck', SIMULATOR, "one wheel's encoder count stops changing",
               {'wheel': None}),
     FaultKind('wheel_slip', SIMULATOR,
-              'one wheel transmits only traction_factor of its force to the floor',
+              "one wheel's grip is traction_factor of the floor's: it slips once its force "
+              'exceeds that share of the friction limit',
               {'wheel': None, 'traction_factor': 0.2}),
     FaultKind('kidnap', SIMULATOR,
               'the true robot is moved by (dx_m, dy_m, dyaw_rad) in the world at onset; '
@@ -134,7 +135,7 @@ def parse_fault(raw: Mapping[str, Any], where: str = 'fault') -> FaultSpec:
     if not isinstance(raw, Mapping):
         raise FaultError(f'{where}: must be a mapping with a kind, not {raw!r}')
     kind_name = raw.get('kind')
-    if kind_name not in FAULT_KINDS:
+    if not isinstance(kind_name, str) or kind_name not in FAULT_KINDS:
         raise FaultError(f'{where}.kind: must be one of {", ".join(FAULT_KINDS)}, '
                          f'not {kind_name!r}')
     kind = FAULT_KINDS[kind_name]

@@ -43,7 +43,9 @@ sticks (s_i = 0) while |F_i| < mu N, N = m g / 4 (equal loads); otherwise it sli
 with F_i = mu N sgn(s_i) ("roller slip"). The limit applies to F_i, so a
 saturated straight start accelerates at exactly mu g. (A real 45-degree roller
 passes its force along the roller axis, |force| = sqrt(2) |F_i|; fold that into
-``friction_coefficient`` if wanted.)
+``friction_coefficient`` if wanted.) :meth:`MecanumPhysics.set_traction_factors`
+scales each wheel's limit apart (a wheel on a slippery patch: the wheel_slip fault):
+|F_i| < f_i mu N; a wheel with f_i = 0 transmits no force at all.
 
 Time stepping (substep h <= max_substep_s, and short enough that the body moves
 at most half the footprint radius at the larger of its speed and r omega_0): a
@@ -338,6 +340,7 @@ class MecanumPhysics:
         self._angle = [0.0] * 4
         self.collision_count = 0
         self.rejected_duties = 0
+        self._traction_factors: Optional[Tuple[float, float, float, float]] = None
         self.teleport(x, y, yaw)
 
     # ------------------------------------------------------------------ public API
@@ -365,6 +368,45 @@ class MecanumPhysics:
         self._velocity_rate = (0.0, 0.0)
         self._warm_signs: List[Optional[float]] = [None] * 4
         self._warm_contacts = frozenset()
+
+    def move_to(self, x: float, y: float, yaw: float) -> None:
+        """
+        Put the robot at a pose keeping its motion (the kidnap fault: picked up and set down).
+
+        The body-frame twist and the wheel speeds and angles are kept; the contacts are
+        found anew in the next step. Nothing checks the pose: the caller keeps it clear
+        of obstacles (an overlap is pushed out in the next step, counting a collision).
+        """
+        if not all(_real(v) and math.isfinite(v) for v in (x, y, yaw)):
+            raise ValueError(f'non-finite pose ({x}, {y}, {yaw})')
+        self._x, self._y, self._yaw = float(x), float(y), wrap_angle(float(yaw))
+        self._contacts = ()
+        self._latched = False
+        self._warm_contacts = frozenset()
+
+    def set_traction_factors(self, factors: Optional[Sequence[float]]) -> None:
+        """
+        Scale each wheel's friction limit (FL FR RL RR, each >= 0; None: all 1).
+
+        Factor f_i: wheel i sticks while |F_i| < f_i mu N and slips at f_i mu N beyond
+        (the wheel_slip fault); 0 transmits no force. All ones is the same as None.
+        """
+        if factors is not None:
+            factors = tuple(factors)
+            if len(factors) != 4 or not all(_real(f) and math.isfinite(f) and f >= 0.0
+                                            for f in factors):
+                raise ValueError('traction factors must be 4 finite numbers >= 0 '
+                                 f'(FL, FR, RL, RR), got {factors!r}')
+            factors = tuple(float(f) for f in factors)
+            if factors == (1.0, 1.0, 1.0, 1.0):
+                factors = None
+        self._traction_factors = factors
+        self._warm_signs = [None] * 4
+
+    @property
+    def traction_factors(self) -> Tuple[float, float, float, float]:
+        """Return each wheel's friction limit factor, FL FR RL RR (1: the floor's)."""
+        return self._traction_factors or (1.0, 1.0, 1.0, 1.0)
 
     @property
     def state(self) -> BodyState:
@@ -546,7 +588,12 @@ class MecanumPhysics:
         p1 = (b1 - scale * (nvx + nvy + kw)) / r
         p2 = (b2 - scale * (nvx + nvy - kw)) / r
         p3 = (b3 - scale * (nvx - nvy + kw)) / r
-        if max(abs(p0), abs(p1), abs(p2), abs(p3)) > limit:
+        factors = self._traction_factors
+        if factors is None:
+            if max(abs(p0), abs(p1), abs(p2), abs(p3)) > limit:
+                return None
+        elif (abs(p0) > limit * factors[0] or abs(p1) > limit * factors[1]
+              or abs(p2) > limit * factors[2] or abs(p3) > limit * factors[3]):
             return None
         return nvx, nvy, nwz, (p0, p1, p2, p3)
 
@@ -564,10 +611,12 @@ class MecanumPhysics:
         g = big_d / (r * r)
         gk, gkk = g * k, g * k * k
         inv_r = 1.0 / r
-        if limit <= 0.0:
-            fixed: List[Optional[float]] = [0.0] * 4
-        else:
-            fixed = [None if sign is None else sign * limit for sign in self._warm_signs]
+        factors = self._traction_factors
+        limits = (limit,) * 4 if factors is None else tuple(limit * f for f in factors)
+        # A wheel without grip (limit 0) transmits nothing: fixed at 0, never released.
+        fixed: List[Optional[float]] = [
+            0.0 if wheel_limit <= 0.0 else None if sign is None else sign * wheel_limit
+            for sign, wheel_limit in zip(self._warm_signs, limits)]
         active = [j for j, key in enumerate(keys) if key in self._warm_contacts]
         base = (m * vx, m * vy, iz * wz)
         v = (vx, vy, wz)
@@ -596,15 +645,15 @@ class MecanumPhysics:
                         for b, s, p in zip(bs, along, fixed)]
             changed = False
             for i, p in enumerate(impulses):
-                if fixed[i] is None and abs(p) > limit:
-                    fixed[i] = limit if p > 0.0 else -limit
+                if fixed[i] is None and abs(p) > limits[i]:
+                    fixed[i] = limits[i] if p > 0.0 else -limits[i]
                     changed = True
             if changed:
                 continue
             if limit > 0.0:
                 worst, worst_i = -_SLIP_TOLERANCE_M_S, None
                 for i, p in enumerate(fixed):
-                    if p is not None:
+                    if p is not None and limits[i] > 0.0:
                         slip = r * (bs[i] - r * p) / big_d - along[i]
                         agreement = slip if p > 0.0 else -slip
                         if agreement < worst:
@@ -632,8 +681,9 @@ class MecanumPhysics:
                 del active[0 if lambdas[0] <= lambdas[1] else 1]
             active.append(worst_j)
         if limit > 0.0:
-            self._warm_signs = [None if p is None else (1.0 if p > 0.0 else -1.0)
-                                for p in fixed]
+            self._warm_signs = [None if p is None or wheel_limit <= 0.0
+                                else (1.0 if p > 0.0 else -1.0)
+                                for p, wheel_limit in zip(fixed, limits)]
         self._warm_contacts = frozenset(keys[j] for j in active)
         return v[0], v[1], v[2], tuple(impulses)
 

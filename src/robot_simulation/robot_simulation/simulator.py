@@ -10,23 +10,38 @@ the mecanum rigid-body physics with DC motors and roller slip
 serves a pseudo-terminal exactly like the real board's serial port once a line is
 attached. Time only advances in :meth:`step`, so a
 run is deterministic for a given seed whatever the wall clock does.
+
+Faults (:mod:`robot_simulation.fault_injection`): :meth:`Simulation.add_fault` schedules
+one of the 'simulator' kinds (onset absolute, simulated s); each step takes the onsets
+and ends due and injects each fault where it arises: the lidar's output
+(:meth:`Simulation.lidar_output`), the board's IMU and encoder counters and its serial
+line (board_sim's hardware layer), each wheel's traction (the physics) and the true
+pose (kidnap, refused when the robot would land on an obstacle). Each change is queued
+in ``fault_changes`` for the caller to log.
+
 Units: SI, REP-103; world frame x east, y north; wheel order FL, FR, RL, RR.
 """
 
 from dataclasses import dataclass, field
 import math
-from typing import List, Tuple
+from typing import List, Optional, Tuple
 
 from mecanum_control.board_model import to_int32
 from mecanum_control.board_params import board_params
 from mecanum_control.board_sim import SimulatedBoard
 from mecanum_control.robot_config import RobotConfig
 import numpy as np
+from robot_simulation.fault_injection import (
+    FaultChange, FaultSchedule, kidnap_target, NO_EFFECTS, ScanFaults)
+from robot_simulation.faults import FaultSpec
 from robot_simulation.physics import MecanumPhysics, PhysicsParams
 from robot_simulation.sensors import ImuConfig, ImuModel, Lidar, LidarConfig
 from robot_simulation.world import World
 
 
+#: Simulated times this close (s) count as equal when faults start and end (0.15 s is
+#: 30 steps of 0.005 s, whose product falls a hair short of 0.05 + 0.1).
+FAULT_TIME_EPS_S = 1e-9
 #: How close (m, between the edges) a walking person comes to the robot before stopping.
 WALKER_GAP_M = 0.15
 #: How long (s) a walking person waits for the robot before turning back.
@@ -127,12 +142,18 @@ class Simulation:
         self._walk_direction = [1.0] * len(world.moving_obstacles)
         self._waited_s = [0.0] * len(world.moving_obstacles)
         self._walk_offset = [(0.0, 0.0)] * len(world.moving_obstacles)   # aside, world m
+        self.faults = FaultSchedule()
+        #: The fault changes not taken yet (the node logs and publishes them).
+        self.fault_changes: List[FaultChange] = []
+        self._scan_faults = ScanFaults()
 
     def step(self) -> None:
         """Advance one physics step with the board's duties, then run the board's loop once."""
         self.physics.step(self.board.plant.efforts, self.dt_s, self.all_circles())
         self.steps += 1
         self.time_s = self.steps * self.dt_s
+        if self.time_s + FAULT_TIME_EPS_S >= self.faults.next_change_s:
+            self._change_faults()
         self._walk(self.dt_s)
         state = self.physics.state
         in_zone = self.world.in_test_zone(state.x, state.y)
@@ -140,6 +161,63 @@ class Simulation:
             self.left_test_zone_count += 1
         self._in_zone = in_zone
         self.board.poll()
+
+    def add_fault(self, fault: FaultSpec) -> Optional[str]:
+        """
+        Schedule a 'simulator' fault (onset absolute, simulated s); None or why it is not.
+
+        Raises FaultError for a kind the simulator does not inject.
+        """
+        return self.faults.add(fault, self.time_s)
+
+    def _change_faults(self) -> None:
+        """Inject the faults acting from now on, apply the instants due, queue the change."""
+        change = self.faults.update(self.time_s + FAULT_TIME_EPS_S)
+        if change is None:
+            return
+        effects = change.effects
+        self.physics.set_traction_factors(effects.traction_factors)
+        hardware = self.board.hw
+        hardware.set_stuck_encoders(effects.stuck_wheels)
+        hardware.imu_silent = effects.imu_silent
+        hardware.imu_bias = effects.imu_bias_sample()
+        line = self.board.line
+        if line is not None:
+            line.set_byte_faults(effects.serial_drop_rate, effects.serial_flip_rate,
+                                 effects.serial_latency_s)
+        for fault in change.instants:   # kidnap is the only instant the simulator injects
+            refused, text = self.kidnap(fault)
+            change.outcomes.append((fault, refused, text))
+        self.fault_changes.append(change)
+
+    def kidnap(self, fault: FaultSpec) -> Tuple[Optional[str], str]:
+        """
+        Move the true robot by a kidnap's (dx_m, dy_m, dyaw_rad), keeping its motion.
+
+        Refused (nothing moves) when the footprint there would overlap a wall, furniture
+        or a person, or leave the world: the fault asks for a pose, and any other pose
+        would be a different fault. Returns (None or the reason refused, a text).
+        """
+        state = self.physics.state
+        x, y, yaw = kidnap_target((state.x, state.y, state.yaw), fault)
+        here = f'({state.x:.3f}, {state.y:.3f}, {math.degrees(state.yaw):.1f} deg)'
+        there = f'({x:.3f}, {y:.3f}, {math.degrees(yaw):.1f} deg)'
+        # 1 mm of slack: a robot touching a wall may be turned where it stands.
+        radius = self.robot.footprint_radius_m - 1e-3
+        reason = None
+        if not self.world.is_free(x, y, radius):
+            reason = 'a wall or furniture (or the world edge)'
+        else:
+            for cx, cy, cr in self.moving_circles():
+                if math.hypot(x - cx, y - cy) < radius + cr:
+                    reason = 'a person'
+                    break
+        if reason is not None:
+            return reason, (f'refused: the robot at {here} would land on {reason} at '
+                            f'{there}; it stays')
+        self.physics.move_to(x, y, yaw)
+        self._in_zone = self.world.in_test_zone(x, y)
+        return None, f'the robot moved from {here} to {there}'
 
     def _walk(self, dt_s: float) -> None:
         """
@@ -261,6 +339,17 @@ class Simulation:
         """One lidar scan from the current pose (float32 ranges, REP-117)."""
         state = self.physics.state
         return self.lidar.scan(state.x, state.y, state.yaw, self.all_circles())
+
+    def lidar_output(self) -> Optional[np.ndarray]:
+        """
+        One scan as the lidar outputs it now, with its faults (None: it sends none).
+
+        Stamp it ``faults.effects.scan_stamp_offset_s`` late (scan_stamp_skew).
+        """
+        ranges = self.scan()
+        if self.faults.effects is NO_EFFECTS:
+            return ranges
+        return self._scan_faults.apply(self.faults.effects, ranges)
 
     def imu_sample(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]:
         """One IMU sample of the body now (accel m/s^2, gyro rad/s, IMU frame = base_link)."""

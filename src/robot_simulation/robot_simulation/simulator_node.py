@@ -19,6 +19,24 @@ laser as mounted (until the robot description publishes it).
 Leaving the world's authorised test zone is logged as an error.
 The IMU and the wheel encoders reach ROS through the board, as on the robot.
 
+Faults (issue 31; robot_simulation.faults, robot_simulation.fault_injection): each
+message on ``simulator/faults`` (std_msgs/String; reliable, transient local, depth 50:
+messages published before the simulator started are taken too) is a JSON object
+``{"kind": ..., "onset_s": ..., "duration_s": ..., <params>}`` (parse_fault's mapping,
+onset_s ABSOLUTE in simulated seconds, duration_s null or left out: to the end) or a
+non-empty JSON list of them. A message is taken whole or not at all: bad JSON, a bad
+fault or a 'runner' kind (node_frozen, node_killed, estop) is logged as an error with
+the reason and ignored. Each fault is injected where it arises while it acts (logged
+``fault lidar_blinded on at 12.0 s for 3 s`` and ``fault lidar_blinded off at 15.0 s``;
+a kidnap ``fault kidnap (...) at 12.0 s: the robot moved from ... to ...`` or, when it
+would land on an obstacle, an error ``... refused: ...``). ``simulator/active_faults``
+(std_msgs/String, reliable, transient local, depth 1) holds the JSON object
+``{"time_s", "active": [faults], "started": [...], "ended": [...], "instants": [fault +
+"applied", "outcome"]}`` of the last change (``active`` empty at start). While a serial
+line fault acts (or delayed bytes are on their way), and after it until a command
+comes through again, lockstep does not wait for the board's command, which the line may
+lose or delay: the processes' /clock_ack still hold time.
+
 Parameters: ``world`` (name of an installed world or a path; 'apartment'), ``seed``
 (0), ``real_time_factor`` (1.0; 0 runs as fast as possible), ``physics_rate_hz``
 (200), ``clock_period_s`` (0.02: every node on sim time wakes for each /clock
@@ -48,6 +66,7 @@ board command for ``lockstep_give_up_s`` (60.0) ends the simulator with an error
 names it (exit code 1).
 """
 
+import json
 import math
 from pathlib import Path
 import select
@@ -65,13 +84,15 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from robot_simulation.fault_injection import FaultChange, parse_fault_message
+from robot_simulation.faults import FaultError
 from robot_simulation.lockstep import BOARD, Lockstep, LockstepConfig, LockstepError
 from robot_simulation.sensors import ImuConfig, LidarConfig
 from robot_simulation.simulator import Simulation, SimulatorConfig
 from robot_simulation.world import find_world, load_world
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
-from std_msgs.msg import Header, UInt32
+from std_msgs.msg import Header, String, UInt32
 from tf2_msgs.msg import TFMessage
 
 
@@ -156,6 +177,7 @@ class SimulatorNode(Node):
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self._clock_published = False
         self._commands_seen = 0
+        self._line_was_faulty = False
         if self.lockstep is not None:
             if self.link is None:
                 raise ValueError('lockstep needs the board link (board_port): the board '
@@ -171,6 +193,13 @@ class SimulatorNode(Node):
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collision_pub = self.create_publisher(UInt32, 'simulation/collisions', latched)
         self.collision_pub.publish(UInt32(data=0))
+        control = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.faults_sub = self.create_subscription(String, 'simulator/faults', self.on_faults,
+                                                   control)
+        self.active_faults_pub = self.create_publisher(String, 'simulator/active_faults',
+                                                       latched)
+        self.active_faults_pub.publish(String(data=json.dumps(FaultChange(0.0).report())))
         if bool(declare('publish_laser_tf', True).value):
             # Until the robot description publishes it: base_link -> laser, as mounted.
             self.static_tf_pub = self.create_publisher(TFMessage, '/tf_static', latched)
@@ -201,10 +230,38 @@ class SimulatorNode(Node):
         """Take a process's sign of life (lockstep: a busy process is waited for)."""
         self.lockstep.alive(msg.frame_id, time.monotonic())
 
+    def on_faults(self, msg: String) -> None:
+        """Schedule the faults of a control message (a bad one is logged and ignored)."""
+        try:
+            faults = parse_fault_message(msg.data)
+        except (FaultError, TypeError, ValueError) as error:
+            self.get_logger().error(f'fault message ignored: {error}')
+            return
+        for fault in faults:
+            note = self.sim.add_fault(fault)
+            if note is None:
+                self.get_logger().info(f'fault {fault.describe()} scheduled (now '
+                                       f'{self.sim.time_s:.3f} s)')
+            else:
+                self.get_logger().warning(note)
+
+    def report_faults(self) -> None:
+        """Log the fault changes of the last step and publish the faults acting."""
+        changes, self.sim.fault_changes = self.sim.fault_changes, []
+        for change in changes:
+            for level, text in change.log_lines():
+                if level == 'error':   # rclpy: one severity per call site
+                    self.get_logger().error(text)
+                else:
+                    self.get_logger().info(text)
+            self.active_faults_pub.publish(String(data=json.dumps(change.report())))
+
     def advance(self) -> None:
         """One physics step (the board's loop runs in it), then everything due now."""
         sim = self.sim
         sim.step()
+        if sim.fault_changes:
+            self.report_faults()
         now = sim.time_s
         if now + 1e-9 >= self._next['clock']:
             self._next['clock'] += self.clock_period_s
@@ -230,11 +287,14 @@ class SimulatorNode(Node):
             self.collision_pub.publish(UInt32(data=sim.collision_count))
 
     def publish_scan(self, now: float) -> None:
-        """Publish one lidar scan."""
+        """Publish one lidar scan (as the lidar's faults leave it: maybe none)."""
+        ranges = self.sim.lidar_output()
+        if ranges is None:
+            return
         lidar = self.sim.lidar
         config = lidar.config
         msg = LaserScan()
-        msg.header.stamp = stamp(now)
+        msg.header.stamp = stamp(now + self.sim.faults.effects.scan_stamp_offset_s)
         msg.header.frame_id = self.laser_frame_id
         msg.angle_min = float(config.angle_min_rad)
         msg.angle_increment = float(lidar.angle_increment_rad)
@@ -243,7 +303,7 @@ class SimulatorNode(Node):
         msg.scan_time = float(lidar.scan_time_s)
         msg.range_min = float(config.range_min_m)
         msg.range_max = float(config.range_max_m)
-        msg.ranges = self.sim.scan().tolist()
+        msg.ranges = ranges.tolist()
         self.scan_pub.publish(msg)
 
     def publish_ground_truth(self, now: float) -> None:
@@ -276,6 +336,9 @@ class SimulatorNode(Node):
                     self._clock_published = False
                     self._take_board_commands()   # those before this /clock answer none
                     self.lockstep.published(self.sim.time_s, time.monotonic())
+                    if self._board_unreliable():
+                        # A serial fault may lose or delay the command: the wire answers.
+                        self.lockstep.board_command(time.monotonic())
                     self.wait_for_stack(executor, stop)
                     next_spin = time.monotonic() + SPIN_PERIOD_S
                 now = time.monotonic()
@@ -312,7 +375,22 @@ class SimulatorNode(Node):
         if commands != self._commands_seen:
             self._commands_seen = commands
             self.lockstep.board_command(now)
+            if self._line_was_faulty and not self.link.faulty:
+                self._line_was_faulty = False   # a command came through a clean line
         return now
+
+    def _board_unreliable(self) -> bool:
+        """
+        Tell whether the board's command cannot gate simulated time (lockstep).
+
+        True while a serial fault acts or delayed bytes are on their way, and after that
+        until a command comes through the clean line (hardware_interface may have lost
+        the link meanwhile: it reconnects on simulated time). Never before the board
+        first answered.
+        """
+        if self.link.faulty:
+            self._line_was_faulty = True
+        return self._line_was_faulty and self._commands_seen > 0
 
     def wait_for_stack(self, executor, stop) -> None:
         """
