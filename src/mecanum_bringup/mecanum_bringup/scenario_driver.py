@@ -10,8 +10,16 @@ topic of the command chain (``cmd_vel_scenario`` by default, ``cmd_vel_teleop``,
 mecanum_safety config/twist_mux.yaml), so they
 go through the mux, the collision monitor and the zone guard like any other. It also
 records every stop of the chain (``collision_monitor_state``, ``zone_guard_state``) and
-every refusal or early stop of robot_controller, where the robot then was. Its clock is
-the simulator's (/clock). It spins in a background thread; the runner calls
+every refusal or early stop of robot_controller, where the robot then was. Faults: it
+sends the simulator's fault kinds on ``simulator/faults`` (std_msgs/String, reliable,
+transient_local: each message the JSON mapping of robot_simulation.faults.parse_fault,
+onset_s absolute in simulated seconds), keeps the simulator's reports of them
+(``simulator/active_faults``: when each started and ended, what became of a kidnap) and
+plays the operator's e-stop: std_msgs/Bool on
+``emergency_stop`` (twist_mux's e_stop lock, motor_controller's latching stop), then on
+release false and a call of ``motor_controller/release_emergency_stop`` (std_srvs/Trigger),
+the reset without which motor_controller stays stopped. Its clock is the simulator's
+(/clock). It spins in a background thread; the runner calls
 its methods from the main thread.
 
 In lockstep (:meth:`join_lockstep`) the runner is one of the parts simulated time waits
@@ -24,10 +32,11 @@ at some step changes: issue 19).
 """
 
 import functools
+import json
 import math
 import threading
 import time
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
@@ -42,7 +51,8 @@ from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Header, String, UInt32
+from std_msgs.msg import Bool, Header, String, UInt32
+from std_srvs.srv import Trigger
 
 #: The command chain's stages whose STOP states are recorded as safety events.
 SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
@@ -55,6 +65,13 @@ ANSWER_TIMEOUT_S = 30.0
 TICK_WAIT_S = 0.02
 #: The runner's name on /clock_ack.
 LOCKSTEP_NAME = 'scenario_runner'
+#: The simulator's fault topic and the e-stop's (see the module docstring).
+FAULT_TOPIC = 'simulator/faults'
+FAULT_REPORT_TOPIC = 'simulator/active_faults'
+ESTOP_TOPIC = 'emergency_stop'
+ESTOP_RELEASE_SERVICE = 'motor_controller/release_emergency_stop'
+#: History kept for late joiners of simulator/faults (a restarted simulator).
+FAULT_HISTORY = 100
 
 Poll = Callable[[], float]
 
@@ -108,6 +125,20 @@ class ScenarioDriver:
         self._twist_pubs = {topic: node.create_publisher(Twist, topic, 10)
                             for topic in command_sources().values()}
         self.command_pub = node.create_publisher(String, 'control_command', 10)
+        self._fault_pub = node.create_publisher(String, FAULT_TOPIC, QoSProfile(
+            depth=FAULT_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        # The button's state: a restarted twist_mux reads the latest one (its
+        # subscription is volatile, depth 10, which a transient_local writer matches).
+        self._estop_pub = node.create_publisher(Bool, ESTOP_TOPIC, QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self._estop_release = node.create_client(Trigger, ESTOP_RELEASE_SERVICE)
+        self._release_answers: List[Any] = []
+        self._fault_reports: List[Dict[str, Any]] = []
+        node.create_subscription(String, FAULT_REPORT_TOPIC, self._on_fault_report, QoSProfile(
+            depth=FAULT_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.navigate = ActionClient(node, NavigateToPose, 'navigate_to_pose')
         self.follow_waypoints = ActionClient(node, FollowWaypoints, 'follow_waypoints')
         # Lockstep: the /clock the spin thread holds (arrived), the time the main thread
@@ -256,6 +287,20 @@ class ScenarioDriver:
         """Append an event at the latest true pose (call with the lock held)."""
         t, x, y, _ = self._truth[-1] if self._truth else (math.nan,) * 4
         self._safety_events.append((t, node_name, text, x, y))
+
+    def _on_fault_report(self, msg: String) -> None:
+        try:
+            report = json.loads(msg.data)
+        except ValueError:
+            return
+        if isinstance(report, dict):
+            with self._lock:
+                self._fault_reports.append(report)
+
+    def fault_reports(self) -> List[Dict[str, Any]]:
+        """Return the simulator's fault reports so far ({time_s, started, ended, ...})."""
+        with self._lock:
+            return list(self._fault_reports)
 
     def safety_events(self) -> List[Tuple[float, str, str, float, float]]:
         """Return (t, node, state, x, y) of every stop or refusal of the command chain."""
@@ -412,6 +457,21 @@ class ScenarioDriver:
         msg = Twist()
         msg.linear.x, msg.linear.y, msg.angular.z = float(vx), float(vy), float(wz)
         publisher.publish(msg)
+
+    def send_fault(self, fault: Mapping[str, Any]) -> None:
+        """Send one fault to the simulator (parse_fault's mapping, onset_s absolute)."""
+        self._fault_pub.publish(String(data=json.dumps(dict(fault), sort_keys=True)))
+
+    def set_estop(self, engaged: bool) -> None:
+        """
+        Press (True) or release (False) the operator's e-stop.
+
+        Release publishes false and asks motor_controller to reset its latched stop (the
+        answer is not awaited: the call goes out now, at this simulated time).
+        """
+        self._estop_pub.publish(Bool(data=bool(engaged)))
+        if not engaged:
+            self._release_answers.append(self._estop_release.call_async(Trigger.Request()))
 
     def close(self) -> None:
         """Stop spinning and shut the node's context down."""

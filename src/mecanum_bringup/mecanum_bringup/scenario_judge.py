@@ -6,16 +6,76 @@ runner recorded) into a :class:`~mecanum_bringup.scenario_model.Verdict`: one
 :class:`~mecanum_bringup.scenario_model.CriterionResult` per step (``step 1`` is
 ``steps[0]``) and per enabled criterion; the verdict is 'pass' when every one passed.
 Tracks are (N, 4) arrays of t, x, y, yaw in the map frame (simulated s, m, rad).
+
+``stay_in_zone`` judges the robot's footprint, a circle of ``footprint_radius_m``
+(motor_params.yaml, :mod:`mecanum_control.robot_config`) about each true pose: its
+clearance is the signed distance from the centre to the zone's border (positive inside,
+:meth:`mecanum_safety.zone.Zone.clearance`) minus the radius, and the criterion fails when
+it is below 0 at any recorded pose (no tolerance). Its line is a :class:`ZoneResult`,
+which carries the least clearance and where it was (:func:`min_zone_clearance_m`). Only
+the recorded poses are judged (ground truth at 50 Hz): between two of them the robot
+moves at most L = v * dt (16 mm at 0.8 m/s), so it can have been at most L / 2 deeper
+than the two poses show.
 """
 
+from dataclasses import dataclass
+import functools
 import math
 from typing import Any, List, Optional
 
 from mecanum_bringup.scenario_model import (
     CommandStep, CriterionResult, ERROR_NAMES, GoalStep, RunRecord, Scenario, Step,
     StepResult, Verdict, WaypointsStep)
+from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_safety.zone import Zone
 import numpy as np
+
+
+@dataclass(frozen=True)
+class ZoneResult(CriterionResult):
+    """
+    The stay_in_zone line of a verdict, with its least footprint clearance.
+
+    min_clearance_m: the least clearance (m; < 0: the footprint was out of the zone) over
+    the true poses, first reached at t_s (simulated s) at (x_m, y_m) (map frame);
+    footprint_radius_m: the radius judged. All None when nothing was measured (no zone
+    declared, no ground truth).
+    """
+
+    min_clearance_m: Optional[float] = None
+    t_s: Optional[float] = None
+    x_m: Optional[float] = None
+    y_m: Optional[float] = None
+    footprint_radius_m: Optional[float] = None
+
+
+@functools.lru_cache(maxsize=1)
+def robot_footprint_radius_m() -> float:
+    """Return the robot's footprint_radius_m (m) from motor_params.yaml (read once)."""
+    return load_robot_config(default_config_path()).footprint_radius_m
+
+
+def footprint_clearances(zone: Zone, truth: Any, footprint_radius_m: float) -> np.ndarray:
+    """
+    Return the footprint's clearance (m) to zone's border at each pose of a track.
+
+    truth: (N, 4) t, x, y, yaw (as track_array: sorted by t, finite rows only). The
+    clearance is the signed distance of (x, y) to the border (positive inside) minus
+    footprint_radius_m: >= 0 exactly when the footprint circle is inside the zone.
+    """
+    track = track_array(truth, 'truth')
+    return zone.clearance(track[:, 1], track[:, 2]) - float(footprint_radius_m)
+
+
+def min_zone_clearance_m(verdict: Verdict) -> Optional[float]:
+    """Return the least footprint clearance (m) of a verdict's stay_in_zone, or None."""
+    line = zone_result(verdict)
+    return None if line is None else line.min_clearance_m
+
+
+def zone_result(verdict: Verdict) -> Optional[ZoneResult]:
+    """Return the verdict's stay_in_zone line (None: the criterion was not judged)."""
+    return next((c for c in verdict.criteria if isinstance(c, ZoneResult)), None)
 
 
 def track_array(values: Any, name: str = 'track') -> np.ndarray:
@@ -67,8 +127,19 @@ def error_label(code: int) -> str:
     return f'{name} ({code})' if name else f'error {code}'
 
 
-def judge(scenario: Scenario, record: RunRecord) -> Verdict:
-    """Judge a run: one CriterionResult per step and per enabled criterion."""
+def judge(scenario: Scenario, record: RunRecord,
+          footprint_radius_m: Optional[float] = None) -> Verdict:
+    """
+    Judge a run: one CriterionResult per step and per enabled criterion.
+
+    footprint_radius_m (m) is the radius stay_in_zone judges; None: the robot's, from
+    motor_params.yaml. ValueError unless it is finite and >= 0.
+    """
+    radius_m = robot_footprint_radius_m() if footprint_radius_m is None \
+        else float(footprint_radius_m)
+    if not (math.isfinite(radius_m) and radius_m >= 0.0):
+        raise ValueError(f'judge: footprint_radius_m must be finite and >= 0, got '
+                         f'{footprint_radius_m!r}')
     results: List[CriterionResult] = []
     for index, step in enumerate(scenario.steps):
         result = record.step_results[index] if index < len(record.step_results) else None
@@ -89,7 +160,7 @@ def judge(scenario: Scenario, record: RunRecord) -> Verdict:
             detail += f', first at t={times[0]:.1f} s'
         results.append(CriterionResult('no_collision', not times, detail))
     if criteria.stay_in_zone:
-        results.append(_judge_zone(scenario.authorised_zone, record.truth))
+        results.append(_judge_zone(scenario.authorised_zone, record.truth, radius_m))
     if criteria.max_localization_error_m is not None:
         results.append(_judge_localization(criteria.max_localization_error_m, record))
     verdict = 'pass' if all(r.passed for r in results) else 'fail'
@@ -158,19 +229,30 @@ def _judge_completion(scenario: Scenario, record: RunRecord) -> CriterionResult:
                            f'{float(record.duration_s):.1f} s')
 
 
-def _judge_zone(zone: Optional[Zone], truth: Any) -> CriterionResult:
+def _judge_zone(zone: Optional[Zone], truth: Any, radius_m: float) -> ZoneResult:
+    name = 'stay_in_zone'
     if zone is None:
-        return CriterionResult('stay_in_zone', True, 'stay_in_zone: no zone declared')
+        return ZoneResult(name, True, f'{name}: no zone declared')
     track = track_array(truth, 'truth')
     if len(track) == 0:
-        return CriterionResult('stay_in_zone', False, 'stay_in_zone: no ground truth recorded')
-    inside = zone.contains(track[:, 1], track[:, 2])
-    if np.all(inside):
-        return CriterionResult('stay_in_zone', True,
-                               f'stay_in_zone: inside at all {len(track)} true poses')
-    t, x, y, _ = track[int(np.argmin(inside))]
-    return CriterionResult('stay_in_zone', False,
-                           f'stay_in_zone: left the zone at t={t:.1f} s ({x:.2f}, {y:.2f})')
+        return ZoneResult(name, False, f'{name}: no ground truth recorded')
+    clearances = footprint_clearances(zone, track, radius_m)
+    # The first pose within a nanometre of the least: ties go to the earliest.
+    least = int(np.argmin(np.round(clearances, 9)))
+    clearance = float(clearances[least])
+    t, x, y, _ = (float(value) for value in track[least])
+    passed = clearance >= 0.0
+    detail = (f'{name}: least clearance {clearance:.3f} m at t={t:.1f} s ({x:.2f}, {y:.2f}): '
+              f'the footprint (radius {radius_m:.2f} m) ')
+    if passed:
+        detail += f'stayed inside at all {len(track)} true poses'
+    else:
+        detail += 'left the zone'
+        first = int(np.argmax(clearances < 0.0))
+        if first != least:
+            detail += f', first at t={track[first, 0]:.1f} s ({track[first, 1]:.2f}, ' \
+                      f'{track[first, 2]:.2f})'
+    return ZoneResult(name, passed, detail, clearance, t, x, y, radius_m)
 
 
 def _judge_localization(limit_m: float, record: RunRecord) -> CriterionResult:

@@ -37,6 +37,11 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
                                        # (twist_mux.yaml: scenario, teleop_keyboard,
                                        # joystick, external, ...), through the command chain
       - freeze: {node: amcl, duration_s: 5.0}   # the node's process hangs (SIGSTOP)
+      - fault: {kind: lidar_blinded, onset_s: 2.0, duration_s: 5.0}
+                                       # a fault (robot_simulation.faults: kind, onset_s
+                                       # from this step's start, default 0; duration_s,
+                                       # default null: to the end; the kind's parameters);
+                                       # the step ends at once, the fault acts meanwhile
       - wait: {duration_s: 2.0}
       criteria:                        # all optional; defaults shown
         max_duration_s: null           # simulated seconds from the first step to the last
@@ -48,7 +53,8 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
 Goal ``expect``: ``reached`` (default), ``refused`` (the goal must end with the error code
 ``error``, a NavigateToPose result code name, or with any non-zero code when ``error`` is
 not given) or ``any``. Command texts are checked with robot_controller's parser at load
-time, cmd_vel twists against the robot's limits in motor_params.yaml.
+time, cmd_vel twists against the robot's limits in motor_params.yaml, faults with
+robot_simulation.faults' parse_fault.
 
 :func:`load_scenario` raises :class:`ScenarioError` naming the file and the key, e.g.
 ``tour.yaml: steps[3].goal.yaw: must be a number, not 'north'`` (list indices count from
@@ -72,13 +78,14 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from mecanum_bringup.scenario_model import (
     CmdVelStep, COMMAND_EXPECTATIONS, CommandStep, Criteria, DEFAULT_GOAL_TIMEOUT_S,
-    FreezeStep, GOAL_EXPECTATIONS, GoalStep, NAVIGATE_TO_POSE_ERRORS, Pose, Scenario, Step,
-    STEP_KINDS, VERDICTS, WaitStep, WaypointsStep)
+    FaultStep, FreezeStep, GOAL_EXPECTATIONS, GoalStep, NAVIGATE_TO_POSE_ERRORS, Pose,
+    Scenario, Step, STEP_KINDS, VERDICTS, WaitStep, WaypointsStep)
 from mecanum_control.robot_config import default_config_path, load_robot_config, RobotConfig
 from mecanum_control.yaml_files import DocumentChecker, load_yaml_file, SAFE_LOADER
 from mecanum_map_server.map_io import find_map_file, MapError
 from mecanum_safety.zone import parse_zone, Zone, ZoneError
 from robot_controller.command_parser import CommandError, CommandLimits, parse_command
+from robot_simulation.faults import FaultError, parse_fault
 from robot_simulation.world import find_world, load_world, World, WorldError
 import yaml
 
@@ -320,7 +327,7 @@ class _Parser(DocumentChecker):
         return tuple(self.step(item, f'steps[{index}]') for index, item in enumerate(value))
 
     def step(self, raw: Any, key: str) -> Step:
-        """Return one step: exactly one of goal, command, cmd_vel, wait."""
+        """Return one step: exactly one of STEP_KINDS."""
         if not isinstance(raw, dict):
             self.fail(key, f'must be a mapping with one of {", ".join(STEP_KINDS)}, '
                       f'not {raw!r}')
@@ -343,6 +350,8 @@ class _Parser(DocumentChecker):
             item = self.mapping(raw['freeze'], where, ('node', 'duration_s'))
             return FreezeStep(self.text(item['node'], f'{where}.node'),
                               self.positive(item['duration_s'], f'{where}.duration_s'))
+        if kind == 'fault':
+            return self.fault(raw['fault'], where)
         item = self.mapping(raw['wait'], where, ('duration_s',))
         return WaitStep(self.positive(item['duration_s'], f'{where}.duration_s'))
 
@@ -410,6 +419,15 @@ class _Parser(DocumentChecker):
         return CmdVelStep(twist['vx'], twist['vy'], twist['wz'],
                           self.positive(raw['duration_s'], f'{key}.duration_s'),
                           source, sources[source])
+
+    def fault(self, value: Any, key: str) -> FaultStep:
+        """Return a fault step, checked by robot_simulation's parse_fault."""
+        try:
+            return FaultStep(parse_fault(value, key))
+        except FaultError as error:
+            # parse_fault says 'KEY: MESSAGE' with KEY inside key: fail at that key.
+            where, _, message = str(error).partition(': ')
+            self.fail(where, message)
 
     def criteria(self, value: Any) -> Criteria:
         """Return the Criteria; every key is optional."""

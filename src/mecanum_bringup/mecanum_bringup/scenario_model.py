@@ -4,8 +4,8 @@ The scenario data model: steps, criteria, scenarios, run records and verdicts (p
 A :class:`Scenario` is what :mod:`mecanum_bringup.scenario_loader` makes of a scenario
 file (the format is described there): its steps (:class:`GoalStep`,
 :class:`WaypointsStep`, :class:`CommandStep`, :class:`CmdVelStep`, :class:`FreezeStep`,
-:class:`WaitStep`) and :class:`Criteria`. A :class:`RunRecord` is what the runner
-recorded during one run (a :class:`StepResult` per step);
+:class:`WaitStep`, :class:`FaultStep`) and :class:`Criteria`. A :class:`RunRecord` is
+what the runner recorded during one run (a :class:`StepResult` per step);
 :mod:`mecanum_bringup.scenario_judge` turns it into a :class:`Verdict` of
 :class:`CriterionResult` s. Metres, seconds and radians; poses in the map frame.
 """
@@ -17,6 +17,7 @@ from typing import Any, Dict, List, Optional, Tuple, Union
 from mecanum_safety.zone import Zone
 import numpy as np
 from robot_controller.command_parser import Motion
+from robot_simulation.faults import FaultSpec
 from robot_simulation.world import World
 
 Pose = Tuple[float, float, float]
@@ -46,7 +47,7 @@ DEFAULT_GOAL_TIMEOUT_S = 120.0
 
 GOAL_EXPECTATIONS = ('reached', 'refused', 'any')
 VERDICTS = ('pass', 'fail')
-STEP_KINDS = ('goal', 'waypoints', 'command', 'cmd_vel', 'wait', 'freeze')
+STEP_KINDS = ('goal', 'waypoints', 'command', 'cmd_vel', 'wait', 'freeze', 'fault')
 COMMAND_EXPECTATIONS = ('done', 'stopped', 'rejected', 'any')
 
 
@@ -140,10 +141,11 @@ class FreezeStep:
     """
     Hang the process that runs node for duration_s simulated seconds (SIGSTOP, SIGCONT).
 
-    A hung node: e.g. amcl, so that localisation goes stale. In a composed system the
-    node's whole container hangs (e.g. amcl with map_server and the navigator). The step
-    ends at once: the next steps run while the node hangs; it resumes duration_s later
-    (or when the run ends).
+    A hung node: e.g. amcl, so that localisation goes stale. It is the fault node_frozen
+    with onset 0 (:meth:`as_fault`), injected the same way: in a composed system the
+    runner runs the node in a process of its own, so only it hangs. The step ends at
+    once: the next steps run while the node hangs; it resumes duration_s later (or when
+    the run ends).
     """
 
     node: str
@@ -154,6 +156,30 @@ class FreezeStep:
     def describe(self) -> str:
         """Return e.g. 'freeze amcl for 5.0 s'."""
         return f'freeze {self.node} for {self.duration_s:.1f} s'
+
+    def as_fault(self) -> FaultSpec:
+        """Return the same thing as a fault: node_frozen at the step's start."""
+        return FaultSpec('node_frozen', 0.0, self.duration_s, (('node', self.node),))
+
+
+@dataclass(frozen=True)
+class FaultStep:
+    """
+    Inject one fault of robot_simulation.faults' vocabulary; fault.onset_s counts from the step.
+
+    The step ends at once (outcome 'done'): the next steps run while the fault acts, from
+    the step's start + fault.onset_s for fault.duration_s (None: to the end of the run).
+    The simulator injects the 'simulator' kinds (sensors, wheels, body, serial line), the
+    runner the 'runner' ones (node_frozen, node_killed, estop).
+    """
+
+    fault: FaultSpec
+
+    kind = 'fault'
+
+    def describe(self) -> str:
+        """Return e.g. 'fault lidar_blinded at +2 s for 5 s'."""
+        return f'fault {self.fault.describe().replace(" at ", " at +", 1)}'
 
 
 @dataclass(frozen=True)
@@ -169,7 +195,7 @@ class WaitStep:
         return f'wait {self.duration_s:.1f} s'
 
 
-Step = Union[GoalStep, WaypointsStep, CommandStep, CmdVelStep, WaitStep, FreezeStep]
+Step = Union[GoalStep, WaypointsStep, CommandStep, CmdVelStep, WaitStep, FreezeStep, FaultStep]
 
 
 @dataclass(frozen=True)
@@ -240,7 +266,7 @@ class StepResult:
     canceled); waypoints 'reached' | 'failed' (a waypoint missed: error_code is the
     first missed one's, error_message names each) | 'refused' | 'timeout'; command
     'done' | 'stopped' (the command chain held it: robot_controller ended it short) |
-    'rejected' | 'interrupted' | 'timeout'; cmd_vel, wait and freeze 'done'; any step
+    'rejected' | 'interrupted' | 'timeout'; cmd_vel, wait, freeze and fault 'done'; any step
     'aborted' when the run stopped during it. error_code is the NavigateToPose result
     code (0 otherwise).
     """
@@ -271,6 +297,14 @@ class RunRecord:
     ground truth and the localisation estimate. duration_s runs from the start of the
     first step to the end of the last; aborted says why the run stopped early (e.g.
     'interrupted', 'a node crashed: ...'), None when it ran to its end.
+
+    faults lists every fault the run injected (fault and freeze steps), in the order of
+    their steps: the fault's mapping (FaultSpec.as_dict: kind, onset_s, duration_s and
+    its parameters) with onset_s absolute (simulated s), plus 'where' ('simulator' or
+    'runner'), 'step' (its step's number, from 1), 'began_s' and 'ended_s' (simulated s:
+    when the runner applied and ended it, or the simulator reported it started and
+    ended; None: not within the run), and for a kidnap 'applied' (false: the simulator
+    refused it) and 'outcome' (the simulator's account).
     """
 
     truth: np.ndarray = field(default_factory=_empty_track)
@@ -283,6 +317,7 @@ class RunRecord:
     step_results: List[StepResult] = field(default_factory=list)
     duration_s: float = 0.0
     aborted: Optional[str] = None
+    faults: List[Dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,8 @@ import re
 from typing import Any, Dict, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
-from mecanum_bringup.scenario_judge import distance_travelled_m, localization_errors, track_array
+from mecanum_bringup.scenario_judge import (
+    distance_travelled_m, localization_errors, track_array, zone_result)
 from mecanum_bringup.scenario_model import GoalStep, RunRecord, Scenario, Verdict, WaypointsStep
 from mecanum_safety.zone import Zone
 import numpy as np
@@ -168,14 +169,19 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
     Goals reached counts goal and waypoints steps whose outcome is 'reached' (a
     waypoints step counts once, all its waypoints reached); distance_m is the
     length of the true path; localisation errors are |estimate - truth| in x, y (see
-    scenario.localization_errors). extra adds top-level keys (e.g. wall_time_s); a key
-    that is already there raises ValueError.
+    scenario.localization_errors). min_zone_clearance_m is stay_in_zone's least footprint
+    clearance (m, < 0: the footprint left the zone; see scenario_judge), first reached at
+    min_zone_clearance_at {t_s, x_m, y_m}, with footprint_radius_m the radius judged: all
+    None when stay_in_zone measured nothing (disabled, no zone, no ground truth). extra
+    adds top-level keys (e.g. wall_time_s); a key that is already there raises ValueError.
     """
     goal_indices = [i for i, step in enumerate(scenario.steps)
                     if isinstance(step, (GoalStep, WaypointsStep))]
     reached = sum(1 for i in goal_indices if i < len(record.step_results)
                   and record.step_results[i].outcome == 'reached')
     errors = localization_errors(record.truth, record.estimate)[:, 1]
+    zone = zone_result(verdict)
+    measured = zone is not None and zone.min_clearance_m is not None
     summary: Dict[str, Any] = {
         'scenario': scenario.name,
         'description': scenario.description,
@@ -191,6 +197,11 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
         'localization_error_max_m': (_finite_or_none(np.max(errors)) if len(errors) else None),
         'localization_error_rms_m': (_finite_or_none(math.sqrt(np.mean(errors ** 2)))
                                      if len(errors) else None),
+        'min_zone_clearance_m': _finite_or_none(zone.min_clearance_m) if measured else None,
+        'min_zone_clearance_at': {'t_s': _finite_or_none(zone.t_s),
+                                  'x_m': _finite_or_none(zone.x_m),
+                                  'y_m': _finite_or_none(zone.y_m)} if measured else None,
+        'footprint_radius_m': _finite_or_none(zone.footprint_radius_m) if measured else None,
         'aborted': record.aborted,
         'safety_events': [{'t_s': _finite_or_none(t), 'node': node, 'state': text,
                            'x_m': _finite_or_none(x), 'y_m': _finite_or_none(y)}

@@ -17,15 +17,19 @@ simulated time, and every one of those processes is gone when the scenario ends,
 whatever happened. The nodes run composed (launch runner ``--compose``: the control
 chain in one process, localisation and navigation in another, as Nav2's
 use_composition), which costs far less CPU on simulated time; ``--no-compose`` runs
-each node in its own process.
+each node in its own process. A node that a freeze or a node fault acts on runs in a
+process of its own when composed (the run's ``composition.yaml``), so that the fault
+hits that node alone.
 
 The runner drives the steps (Nav2's NavigateToPose and FollowWaypoints goals, text commands
-on ``control_command``, twists on a command source's topic of the command chain, waits) and
-records the simulator's ground truth (``ground_truth/odom``), amcl's estimate
-(``amcl_pose``), the collisions (``simulation/collisions``) and the plans (``plan``).
-Each scenario gets a folder ``DIR/NAME/``: ``summary.json``, ``run.png`` (map, plans,
-driven path, ground truth, collisions), ``truth.csv`` and ``estimate.csv`` (t_s, x_m,
-y_m, yaw_rad in the map frame), ``system.log`` (every node's output) and, with
+on ``control_command``, twists on a command source's topic of the command chain, waits,
+faults: see :class:`FaultInjector`) and records the simulator's ground truth
+(``ground_truth/odom``), amcl's estimate (``amcl_pose``), the collisions
+(``simulation/collisions``) and the plans (``plan``). Each scenario gets a folder
+``DIR/NAME/``: ``summary.json`` (with ``faults``: each fault injected, and when; see
+RunRecord.faults), ``run.png`` (map, plans, driven path, ground truth, collisions),
+``truth.csv`` and ``estimate.csv`` (t_s, x_m, y_m, yaw_rad in the map frame),
+``system.log`` (every node's output) and, with
 ``--record``, ``bag/`` (an MCAP rosbag2 of every topic). The table of verdicts is
 printed at the end; ``--junit`` writes it as JUnit XML for CI.
 
@@ -60,7 +64,7 @@ import subprocess
 import sys
 import threading
 import time
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Set, Tuple
 import uuid
 
 from mecanum_bringup.isolation import (
@@ -70,12 +74,13 @@ from mecanum_bringup.scenario_judge import error_label, judge
 from mecanum_bringup.scenario_loader import (
     find_scenarios, load_scenario, scenario_world_document, ScenarioError)
 from mecanum_bringup.scenario_model import (
-    CmdVelStep, CommandStep, FreezeStep, GoalStep, RunRecord, Scenario, StepResult, WaitStep,
-    WaypointsStep)
+    CmdVelStep, CommandStep, FaultStep, FreezeStep, GoalStep, RunRecord, Scenario, StepResult,
+    WaitStep, WaypointsStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
 from mecanum_safety.zone import zone_file_text
 import numpy as np
+from robot_simulation.faults import FaultSpec, SIMULATOR
 import yaml
 
 #: Environment variable carrying a scenario run's marker (to find leftover processes).
@@ -231,15 +236,23 @@ class SystemProcess:
     """The launch runner running one scenario's system; output to a log file and memory."""
 
     def __init__(self, launch_file: Path, env: Dict[str, str], log_file: Path,
-                 compose: bool = True):
-        """Start the launch runner in its own session, with a marker in its environment."""
+                 compose: bool = True, composition_file: Optional[Path] = None):
+        """
+        Start the launch runner in its own session, with a marker in its environment.
+
+        compose groups the nodes into containers: those of composition_file (default:
+        mecanum_bringup's config/composition.yaml).
+        """
         self.marker = uuid.uuid4().hex
         self.lines: List[str] = []
         self._lock = threading.Lock()
         self._log = open(log_file, 'w', encoding='utf-8')
+        self.compose = compose
+        self.composition_file = composition_file
+        composition = ['--composition', str(composition_file)] if composition_file else []
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'mecanum_bringup.launch_runner',
-             *(['--compose'] if compose else []), str(launch_file)],
+             *(['--compose', *composition] if compose else []), str(launch_file)],
             env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, text=True, start_new_session=True,
             # A runner killed outright (SIGKILL, a Ray worker or node lost) takes its
@@ -270,9 +283,12 @@ class SystemProcess:
         pids = self.node_pids()
         if node in pids:
             return pids[node]
+        if not self.compose:
+            return None
         from mecanum_bringup.composition import load_composition
         from mecanum_bringup.launch_runner import default_composition_file
-        for container, members in load_composition(default_composition_file()).items():
+        file = self.composition_file or default_composition_file()
+        for container, members in load_composition(file).items():
             if node in members and container in pids:
                 return pids[container]
         return None
@@ -318,6 +334,208 @@ def processes_with_marker(marker: Optional[str] = None) -> List[int]:
     return processes_with_variable(RUN_MARKER, marker)
 
 
+# --- faults --------------------------------------------------------------------------
+
+#: The node fault kinds: they act on the process that runs the fault's 'node'.
+NODE_FAULTS = ('node_frozen', 'node_killed')
+
+
+def step_fault(step) -> Optional[FaultSpec]:
+    """Return the fault a step injects (fault and freeze steps; onset from it), or None."""
+    if isinstance(step, FaultStep):
+        return step.fault
+    if isinstance(step, FreezeStep):
+        return step.as_fault()
+    return None
+
+
+def fault_nodes(scenario: Scenario) -> List[str]:
+    """Return the nodes a node fault (node_frozen, node_killed, freeze) acts on, in order."""
+    nodes: List[str] = []
+    for step in scenario.steps:
+        fault = step_fault(step)
+        if fault is not None and fault.kind in NODE_FAULTS and fault.param('node') not in nodes:
+            nodes.append(fault.param('node'))
+    return nodes
+
+
+def composition_without(containers: Dict[str, List[str]],
+                        nodes: Iterable[str]) -> Dict[str, List[str]]:
+    """Return the containers without nodes (each then runs alone); empty ones left out."""
+    leave_out: Set[str] = set(nodes)
+    kept = {name: [label for label in labels if label not in leave_out]
+            for name, labels in containers.items()}
+    return {name: labels for name, labels in kept.items() if labels}
+
+
+def write_composition(scenario: Scenario, run_dir: Path) -> Tuple[bool, Optional[Path]]:
+    """
+    Return (compose, composition file) for a composed run of scenario.
+
+    A node that a node fault acts on runs in a process of its own, so that freezing or
+    killing it hits it alone, not its container's other nodes: the default composition
+    without those nodes is written to run_dir/composition.yaml. (False, None) when no
+    container is left; (True, None) without node faults (the default composition).
+    """
+    nodes = fault_nodes(scenario)
+    if not nodes:
+        return True, None
+    from mecanum_bringup.composition import load_composition
+    from mecanum_bringup.launch_runner import default_composition_file
+    containers = composition_without(load_composition(default_composition_file()), nodes)
+    if not containers:
+        return False, None
+    path = run_dir / 'composition.yaml'
+    path.write_text(yaml.safe_dump({'containers': containers}, sort_keys=False),
+                    encoding='utf-8')
+    return True, path
+
+
+class FaultInjector:
+    """
+    Injects a run's faults at their simulated times and records them in record.faults.
+
+    :meth:`add` takes a fault step's fault (onset_s from the step's start, start_s). A
+    'simulator' kind is sent to the simulator at once with its onset made absolute
+    (driver.send_fault); the simulator applies it on its own clock and reports it
+    (driver.fault_reports, read by :meth:`finish`). The runner applies
+    the 'runner' kinds itself when :meth:`due` sees their time come (it is called on
+    every poll of the steps, and at once by add: an onset of 0 acts at the step's start):
+
+    - node_frozen: SIGSTOP to the process running node (system.pid_of), SIGCONT
+      duration_s later (or when the run ends: :meth:`finish`);
+    - node_killed: SIGKILL to it (the launch runner respawns the node, if it respawns);
+    - estop: the operator presses the e-stop (driver.set_estop(True): emergency_stop
+      true) and releases it duration_s later (driver.set_estop(False): false, and the
+      reset of motor_controller's latched stop), not at all when duration_s is None.
+
+    A node that runs in no process is a RuntimeError (a misspelt node: the run aborts).
+    Signals are sent with kill (os.kill), which tests replace.
+    """
+
+    def __init__(self, system, driver, record: RunRecord,
+                 kill: Callable[[int, int], None] = os.kill):
+        """Inject through system (pid_of) and driver (send_fault, set_estop, fault_reports)."""
+        self.system = system
+        self.driver = driver
+        self.record = record
+        self.kill = kill
+        #: (simulated time s, order, fault index in record.faults, 'begin' | 'end')
+        self._pending: List[Tuple[float, int, int, str]] = []
+        self._order = 0
+        self._specs: List[FaultSpec] = []   # absolute onsets, as record.faults
+        self._stopped: Dict[int, int] = {}  # fault index -> the pid it stopped
+
+    def add(self, fault: FaultSpec, start_s: float, step_number: int) -> Dict[str, Any]:
+        """Schedule fault (onset from start_s) of step step_number; return its record."""
+        absolute = replace(fault, onset_s=start_s + fault.onset_s)
+        entry = dict(absolute.as_dict(), where=fault.where, step=step_number, began_s=None,
+                     ended_s=None)
+        index = len(self.record.faults)
+        self.record.faults.append(entry)
+        self._specs.append(absolute)
+        if fault.where == SIMULATOR:
+            self.driver.send_fault(absolute.as_dict())
+        elif fault.kind in NODE_FAULTS + ('estop',):
+            if fault.kind in NODE_FAULTS:
+                self._pid(fault)   # a node no process runs: an error now, not at onset
+            self._schedule(absolute.onset_s, index, 'begin')
+        else:
+            raise RuntimeError(f'the runner cannot inject {fault.kind} (where {fault.where})')
+        self.due(start_s)
+        return entry
+
+    def due(self, now_s: float) -> None:
+        """Apply the runner's actions whose simulated time has come, in time order."""
+        while self._pending and self._pending[0][0] <= now_s:
+            _, _, index, action = self._pending.pop(0)
+            if action == 'begin':
+                self._begin(index, now_s)
+            else:
+                self._end(index, now_s)
+
+    def finish(self) -> None:
+        """
+        At the run's end: resume the frozen processes; date the simulator's faults.
+
+        A runner fault still pending keeps None times (it did not act, or did not end,
+        within the run). A simulator fault is dated by the simulator's reports
+        (driver.fault_reports: {time_s, started, ended, instants}, each fault as
+        parse_fault's mapping): began_s, ended_s, and for an instant (kidnap) also
+        'applied' (false: refused) and 'outcome' (what the simulator says happened).
+        """
+        for index, pid in list(self._stopped.items()):
+            self._signal(pid, signal.SIGCONT)
+            del self._stopped[index]
+        self._pending.clear()
+        reports = self.driver.fault_reports()
+        for spec, entry in zip(self._specs, self.record.faults):
+            if spec.where == SIMULATOR:
+                _date_simulator_fault(entry, spec.as_dict(), reports)
+
+    def _schedule(self, time_s: float, index: int, action: str) -> None:
+        self._order += 1
+        self._pending.append((time_s, self._order, index, action))
+        self._pending.sort()
+
+    def _pid(self, fault: FaultSpec) -> int:
+        node = fault.param('node')
+        pid = self.system.pid_of(node)
+        if pid is None:
+            raise RuntimeError(f'{fault.kind}: no running process runs node {node!r}')
+        return pid
+
+    def _signal(self, pid: int, number: int) -> bool:
+        try:
+            self.kill(pid, number)
+        except ProcessLookupError:
+            return False
+        return True
+
+    def _begin(self, index: int, now_s: float) -> None:
+        spec, entry = self._specs[index], self.record.faults[index]
+        entry['began_s'] = now_s
+        if spec.kind == 'node_frozen':
+            pid = self._pid(spec)
+            if self._signal(pid, signal.SIGSTOP):
+                self._stopped[index] = pid
+        elif spec.kind == 'node_killed':
+            self._signal(self._pid(spec), signal.SIGKILL)
+            entry['ended_s'] = now_s
+            return
+        else:
+            self.driver.set_estop(True)
+        if spec.duration_s is not None:
+            self._schedule(spec.onset_s + spec.duration_s, index, 'end')
+
+    def _end(self, index: int, now_s: float) -> None:
+        spec, entry = self._specs[index], self.record.faults[index]
+        entry['ended_s'] = now_s
+        if spec.kind == 'node_frozen':
+            pid = self._stopped.pop(index, None)
+            if pid is not None:
+                self._signal(pid, signal.SIGCONT)
+        else:
+            self.driver.set_estop(False)
+
+
+def _date_simulator_fault(entry: Dict[str, Any], fault: Dict[str, Any],
+                          reports: Sequence[Dict[str, Any]]) -> None:
+    """Set entry's began_s, ended_s (and applied, outcome) from the simulator's reports."""
+    for report in reports:
+        time_s = report.get('time_s')
+        if entry['began_s'] is None and fault in (report.get('started') or []):
+            entry['began_s'] = time_s
+        if entry['ended_s'] is None and fault in (report.get('ended') or []):
+            entry['ended_s'] = time_s
+        for instant in report.get('instants') or []:
+            if entry['began_s'] is None and {key: value for key, value in instant.items()
+                                             if key not in ('applied', 'outcome')} == fault:
+                entry['began_s'] = entry['ended_s'] = time_s
+                entry['applied'] = instant.get('applied')
+                entry['outcome'] = instant.get('outcome')
+
+
 # --- one scenario ----------------------------------------------------------------------
 
 class Interrupted(Exception):
@@ -339,7 +557,9 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     with lease_domain_id() as lease:
         env = isolated_environment(os.environ, lease.domain_id)
         env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        system = SystemProcess(launch_file, env, run_dir / 'system.log', options.compose)
+        compose, composition = (write_composition(scenario, run_dir) if options.compose
+                                else (False, None))
+        system = SystemProcess(launch_file, env, run_dir / 'system.log', compose, composition)
         driver = None
         try:
             from mecanum_bringup.scenario_driver import ScenarioDriver
@@ -380,6 +600,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
         'wall_time_s': round(wall, 1),
         'real_time_factor': real_time_factor(scenario, options) or 'max',
         'lockstep': options.lockstep})
+    summary.setdefault('faults', record.faults)
     (run_dir / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n',
                                           encoding='utf-8')
     for name, track in (('truth', record.truth), ('estimate', record.estimate)):
@@ -432,7 +653,7 @@ def _check(system: SystemProcess) -> None:
 
 def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRecord,
                options: RunOptions, say: Progress) -> None:
-    frozen: List[Tuple[int, float]] = []   # (pid, simulated time to resume it)
+    faults = FaultInjector(system, driver, record)
     if options.lockstep:
         driver.join_lockstep(check=lambda: _check(system))
         # The first step starts on a whole simulated second: every periodic timer of the
@@ -441,11 +662,10 @@ def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRec
             _check(system)
             driver.tick()
     try:
-        _run_each_step(scenario, driver, system, options, say, record, frozen)
+        _run_each_step(scenario, driver, system, options, say, record, faults)
     finally:
+        faults.finish()
         driver.leave_lockstep()
-        for pid, _ in frozen:
-            _resume(pid)
 
 
 def _whole_second(time_s: float) -> bool:
@@ -453,15 +673,8 @@ def _whole_second(time_s: float) -> bool:
     return abs(time_s - round(time_s)) < 1e-6
 
 
-def _resume(pid: int) -> None:
-    try:
-        os.kill(pid, signal.SIGCONT)
-    except ProcessLookupError:
-        pass
-
-
 def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: RunOptions,
-                   say: Progress, record: RunRecord, frozen: List[Tuple[int, float]]) -> None:
+                   say: Progress, record: RunRecord, faults: FaultInjector) -> None:
     total = len(scenario.steps)
     for number, step in enumerate(scenario.steps, start=1):
         start_s = driver.sim_now()
@@ -474,9 +687,7 @@ def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: R
             """Check the system, print a status line now and then; return sim now."""
             _check(system)
             now = driver.sim_now()
-            for entry in [entry for entry in frozen if now >= entry[1]]:
-                frozen.remove(entry)
-                _resume(entry[0])
+            faults.due(now)
             if now - last_status[0] >= options.status_period_s:
                 last_status[0] = now
                 say('    ' + driver.status_line(now - start_s))
@@ -492,8 +703,9 @@ def _run_each_step(scenario: Scenario, driver, system: SystemProcess, options: R
             _cmd_vel(step, driver, result, poll)
         elif isinstance(step, WaitStep):
             _wait(step.duration_s, driver, result, poll)
-        elif isinstance(step, FreezeStep):
-            _freeze(step, system, result, frozen)
+        elif isinstance(step, (FaultStep, FreezeStep)):
+            faults.add(step_fault(step), start_s, number)
+            result.outcome = 'done'
         result.end_s = driver.sim_now()
         detail = f' ({error_label(result.error_code)}: {result.error_message})' \
             if result.error_code else ''
@@ -605,17 +817,6 @@ def _cmd_vel(step: CmdVelStep, driver, result: StepResult, poll) -> None:
             next_s = now + CMD_VEL_PERIOD_S
         driver.tick()
     driver.publish_twist(0.0, 0.0, 0.0, step.topic)
-    result.outcome = 'done'
-
-
-def _freeze(step: FreezeStep, system: 'SystemProcess', result: StepResult,
-            frozen: List[Tuple[int, float]]) -> None:
-    """Hang the process running step.node (SIGSTOP); poll resumes it duration_s later."""
-    pid = system.pid_of(step.node)
-    if pid is None:
-        raise RuntimeError(f'freeze: no running process runs node {step.node!r}')
-    os.kill(pid, signal.SIGSTOP)
-    frozen.append((pid, result.start_s + step.duration_s))
     result.outcome = 'done'
 
 

@@ -6,14 +6,18 @@ replaces a single pass or fail. One sweep per YAML file; units as in scenario fi
 
     sweep:
       name: tour_robustness            # required, [A-Za-z0-9_-]+
-      scenario: apartment_tour         # required: a shipped scenario's name, or a scenario
-                                       # file relative to this file
+      scenario: apartment_tour         # required (unless axes.scenario): a shipped
+                                       # scenario's name, or a scenario file relative to
+                                       # this file
       mode: random                     # grid (default: every combination of the axes'
                                        # lists) | random (samples draws from master_seed)
       samples: 50                      # random: how many variants
       master_seed: 1                   # random: the same file gives the same variants
       axes:                            # at least one; each a list of values, or in random
                                        # mode a distribution
+        scenario: [apartment_tour, ../scenarios/kitchen_run.yaml]   # instead of
+                                       # sweep.scenario: the scenarios, as sweep.scenario
+                                       # names them (values: the scenarios' names)
         seed: {range: [0, 1000]}       # the scenario's seed (sensor noise, the start
                                        # pose's spread): integers lo <= seed < hi, or a list
         world: [apartment]             # world names or files (relative to this file)
@@ -26,7 +30,14 @@ replaces a single pass or fail. One sweep per YAML file; units as in scenario fi
                                        # (speed_m_s, path, loop, radius_m; name: another one)
         goals: {sample: 4}             # goal steps kept: k of them at random, in order;
                                        # or a list of index lists, e.g. [[0, 1], [2, 3]]
-                                       # (indices among the scenario's goal steps, from 0)
+                                       # (indices among the scenario's goal steps, from 0;
+                                       # with axes.scenario, of every scenario)
+        fault:                         # a fault step first in the scenario: mappings of
+        - {kind: lidar_blinded, duration_s: 5.0}   # robot_simulation.faults (a fault
+        - {kind: node_killed, node: amcl}          # step's keys; null: no fault)
+        fault_onset_s: [5, 15, 30]     # the faults' onset_s (s from the first step), or
+                                       # {uniform: [lo, hi]}; needs the fault axis (whose
+                                       # mappings then have no onset_s)
 
 In grid mode every axis is a list and the variants are their cartesian product, in the
 order of the axes above (the last axis varies fastest). In random mode variant i draws
@@ -51,13 +62,14 @@ import random
 from typing import Any, Dict, List, Optional, Tuple, Union
 
 from mecanum_control.yaml_files import DocumentChecker, key_lines, load_yaml_file_with_nodes
+from robot_simulation.faults import FaultError, parse_fault
 import yaml
 
 PathLike = Union[str, Path]
 
 #: The axes, in the order in which grid variants vary them (the last fastest).
-AXES = ('seed', 'world', 'floor_friction_coefficient', 'sensor_noise_scale', 'spawn',
-        'person', 'goals')
+AXES = ('scenario', 'seed', 'world', 'floor_friction_coefficient', 'sensor_noise_scale',
+        'spawn', 'person', 'goals', 'fault', 'fault_onset_s')
 MODES = ('grid', 'random')
 SWEEP_KEYS = ('name', 'scenario', 'mode', 'samples', 'master_seed', 'axes', 'description')
 PERSON_KEYS = ('name', 'speed_m_s', 'path', 'loop', 'radius_m')
@@ -84,13 +96,19 @@ class Sweep:
     goal_count: int = 0   # goal steps in the scenario (for the goals axis)
     scenario_document: Dict[str, Any] = field(default_factory=dict, compare=False,
                                               repr=False)
+    #: With axes.scenario: scenario name -> (its file, its document); the first one is
+    #: also scenario_file and scenario_document.
+    scenarios: Dict[str, Tuple[Path, Dict[str, Any]]] = field(
+        default_factory=dict, compare=False, repr=False)
 
     @property
     def fingerprint(self) -> str:
         """Return what fixes the variants (mode, samples, seed, axes) as canonical JSON."""
-        return json.dumps({'scenario': str(self.scenario_file), 'mode': self.mode,
-                           'samples': self.samples, 'master_seed': self.master_seed,
-                           'axes': self.axes}, sort_keys=True)
+        fixed = {'scenario': str(self.scenario_file), 'mode': self.mode,
+                 'samples': self.samples, 'master_seed': self.master_seed, 'axes': self.axes}
+        if self.scenarios:
+            fixed['scenarios'] = {name: str(path) for name, (path, _) in self.scenarios.items()}
+        return json.dumps(fixed, sort_keys=True)
 
 
 @dataclass(frozen=True)
@@ -117,6 +135,12 @@ class Variant:
 def _short(value: Any) -> str:
     if isinstance(value, float):
         return f'{value:g}'
+    if value is None:
+        return 'none'
+    if isinstance(value, dict) and 'kind' in value:   # a fault: kind(key=value,...)
+        params = ','.join(f'{key}={item if isinstance(item, str) else _short(item)}'
+                          for key, item in value.items() if key != 'kind')
+        return f'{value["kind"]}({params})' if params else str(value['kind'])
     if isinstance(value, dict) and set(value) <= {'x', 'y', 'yaw'}:
         return '({:g},{:g},{:g})'.format(value['x'], value['y'], value.get('yaw', 0.0))
     return json.dumps(value, separators=(',', ':'))
@@ -141,16 +165,27 @@ class _Parser(DocumentChecker):
 
     def parse(self, doc: Any) -> Sweep:
         """Check the whole document and return the Sweep."""
-        raw = self.mapping(self.document(doc, 'sweep'), 'sweep', ('name', 'scenario', 'axes'),
-                           [k for k in SWEEP_KEYS if k not in ('name', 'scenario', 'axes')])
+        raw = self.mapping(self.document(doc, 'sweep'), 'sweep', ('name', 'axes'),
+                           [k for k in SWEEP_KEYS if k not in ('name', 'axes')])
         name = self.identifier(raw['name'], 'sweep.name')
         description = raw.get('description') or ''
         if not isinstance(description, str):
             self.fail('sweep.description', f'must be a string, not {description!r}')
         mode = self.choice(raw.get('mode', 'grid'), 'sweep.mode', MODES)
-        scenario_file, scenario_doc = self.scenario(raw['scenario'])
-        goal_count = sum(1 for step in scenario_doc['scenario'].get('steps') or []
-                         if isinstance(step, dict) and 'goal' in step)
+        axes_raw = raw['axes']
+        scenarios: Dict[str, Tuple[Path, Dict[str, Any]]] = {}
+        if isinstance(axes_raw, dict) and 'scenario' in axes_raw:
+            if 'scenario' in raw:
+                self.fail('sweep.scenario', 'is not allowed with axes.scenario (the axis '
+                          'names the scenarios)')
+            scenarios = self.scenario_axis(axes_raw['scenario'], 'sweep.axes.scenario')
+            scenario_file, scenario_doc = next(iter(scenarios.values()))
+        elif 'scenario' not in raw:
+            self.fail('sweep', "missing key 'scenario'")
+        else:
+            scenario_file, scenario_doc = self.scenario(raw['scenario'])
+        goal_count = min(_goal_count(document) for _, document in
+                         (scenarios.values() or [(scenario_file, scenario_doc)]))
         samples = master_seed = 0
         if mode == 'random':
             for key in ('samples', 'master_seed'):
@@ -162,38 +197,41 @@ class _Parser(DocumentChecker):
             for key in ('samples', 'master_seed'):
                 if key in raw:
                     self.fail(f'sweep.{key}', 'is only allowed with mode: random')
-        axes_raw = self.mapping(raw['axes'], 'sweep.axes', (), AXES)
+        axes_raw = self.mapping(axes_raw, 'sweep.axes', (), AXES)
         if not axes_raw:
             self.fail('sweep.axes', f'needs at least one axis of {", ".join(AXES)}')
         axes = {axis: self.axis(axis, axes_raw[axis], f'sweep.axes.{axis}', mode, goal_count)
-                for axis in AXES if axis in axes_raw}
+                for axis in AXES if axis in axes_raw and axis != 'scenario'}
+        if scenarios:
+            axes = dict({'scenario': list(scenarios)}, **axes)
+        self.check_combinations(axes, scenarios)
         sweep = Sweep(name=name, source=self.path, scenario_file=scenario_file, mode=mode,
                       axes=axes, samples=samples, master_seed=master_seed,
                       description=description, goal_count=goal_count,
-                      scenario_document=scenario_doc)
+                      scenario_document=scenario_doc, scenarios=scenarios)
         count = variant_count(sweep)
         if count > MAX_VARIANTS:
             self.fail('sweep.axes' if mode == 'grid' else 'sweep.samples',
                       f'{count} variants, more than the {MAX_VARIANTS} allowed')
         return sweep
 
-    def scenario(self, value: Any) -> Tuple[Path, Dict[str, Any]]:
+    def scenario(self, value: Any, key: str = 'sweep.scenario') -> Tuple[Path, Dict[str, Any]]:
         """Return the scenario file (relative to the sweep, or a shipped name) and its doc."""
         if not isinstance(value, str) or not value.strip():
-            self.fail('sweep.scenario', f'must be a scenario name or file, not {value!r}')
+            self.fail(key, f'must be a scenario name or file, not {value!r}')
         candidate = Path(value).expanduser()
         if not candidate.is_absolute():
             candidate = self.path.parent / candidate
         if not candidate.is_file() and '/' not in value and not value.endswith('.yaml'):
             candidate = shipped_scenarios_folder() / f'{value}.yaml'
         if not candidate.is_file():
-            self.fail('sweep.scenario', f'no scenario file {value!r} (looked for {candidate})')
+            self.fail(key, f'no scenario file {value!r} (looked for {candidate})')
         try:
             doc = yaml.safe_load(candidate.read_text(encoding='utf-8'))
         except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
-            self.fail('sweep.scenario', f'cannot read {candidate}: {error}')
+            self.fail(key, f'cannot read {candidate}: {error}')
         if not isinstance(doc, dict) or not isinstance(doc.get('scenario'), dict):
-            self.fail('sweep.scenario', f'{candidate} is not a scenario file')
+            self.fail(key, f'{candidate} is not a scenario file')
         return candidate.resolve(), doc
 
     def axis(self, axis: str, value: Any, key: str, mode: str, goal_count: int) -> Any:
@@ -211,6 +249,8 @@ class _Parser(DocumentChecker):
             'spawn': self.pose,
             'person': self.person,
             'goals': lambda v, k: self.goal_subset(v, k, goal_count),
+            'fault': self.fault,
+            'fault_onset_s': lambda v, k: self.number(v, k, minimum=0.0),
         }[axis]
         return [check(item, f'{key}[{index}]') for index, item in enumerate(value)]
 
@@ -218,7 +258,8 @@ class _Parser(DocumentChecker):
                      goal_count: int) -> Dict[str, Any]:
         """Check a distribution: range (seed), uniform (numbers) or sample (goals)."""
         kinds = {'seed': 'range', 'floor_friction_coefficient': 'uniform',
-                 'sensor_noise_scale': 'uniform', 'goals': 'sample'}
+                 'sensor_noise_scale': 'uniform', 'goals': 'sample',
+                 'fault_onset_s': 'uniform'}
         if axis not in kinds:
             self.fail(key, 'must be a non-empty list of values (no distribution for '
                       f'{axis})')
@@ -242,6 +283,50 @@ class _Parser(DocumentChecker):
         if not lo < hi:
             self.fail(where, f'must be [lo, hi] with lo < hi, not {bounds!r}')
         return {kind: [lo, hi]}
+
+    def scenario_axis(self, value: Any, key: str) -> Dict[str, Tuple[Path, Dict[str, Any]]]:
+        """Return {name: (file, document)} of the scenario axis's scenarios, in order."""
+        if not isinstance(value, list) or not value:
+            self.fail(key, 'must be a non-empty list of scenario names or files')
+        found: Dict[str, Tuple[Path, Dict[str, Any]]] = {}
+        for index, item in enumerate(value):
+            where = f'{key}[{index}]'
+            path, document = self.scenario(item, where)
+            name = document['scenario'].get('name')
+            if not isinstance(name, str) or not name:
+                self.fail(where, f'{path} has no scenario name')
+            if name in found:
+                self.fail(where, f'scenario {name!r} is already in the axis')
+            found[name] = (path, document)
+        return found
+
+    def fault(self, value: Any, key: str) -> Optional[Dict[str, Any]]:
+        """Return a fault mapping as written (checked by parse_fault), or None: no fault."""
+        if value is None:
+            return None
+        try:
+            parse_fault(value, key)
+        except FaultError as error:
+            where, _, message = str(error).partition(': ')
+            self.fail(where, message)
+        return dict(value)
+
+    def check_combinations(self, axes: Dict[str, Any],
+                           scenarios: Dict[str, Tuple[Path, Dict[str, Any]]]) -> None:
+        """Check what one axis needs of another: the fault onsets, one world for person."""
+        if 'fault_onset_s' in axes and 'fault' not in axes:
+            self.fail('sweep.axes.fault_onset_s', 'needs the fault axis')
+        if 'fault_onset_s' in axes:
+            for index, fault in enumerate(axes['fault']):
+                if isinstance(fault, dict) and 'onset_s' in fault:
+                    self.fail(f'sweep.axes.fault[{index}].onset_s', 'is given by '
+                              'axes.fault_onset_s: leave it out here')
+        if 'person' in axes and 'world' not in axes and len(scenarios) > 1:
+            worlds = {_world_of(path, document) for path, document in scenarios.values()}
+            if len(worlds) > 1:
+                self.fail('sweep.axes.person', 'the scenarios of axes.scenario are in '
+                          f'different worlds ({", ".join(sorted(worlds))}): give one world '
+                          'with the world axis')
 
     def world(self, value: Any, key: str) -> str:
         """Return a world name, or a world file made absolute."""
@@ -285,6 +370,29 @@ class _Parser(DocumentChecker):
         if indices != sorted(set(indices)):
             self.fail(key, f'must be distinct indices in increasing order, not {value!r}')
         return indices
+
+
+def _goal_count(document: Dict[str, Any]) -> int:
+    """Return the number of goal steps of a scenario document."""
+    return sum(1 for step in document['scenario'].get('steps') or []
+               if isinstance(step, dict) and 'goal' in step)
+
+
+def _world_of(path: Path, document: Dict[str, Any]) -> str:
+    """Return a scenario document's world: its name, or its file made absolute."""
+    value = str(document['scenario'].get('world'))
+    if '/' in value or value.endswith(('.yaml', '.yml')):
+        return str((path.parent / Path(value).expanduser()).resolve())
+    return value
+
+
+def _absolute(scenario: Dict[str, Any], folder: Path) -> None:
+    """Make a scenario document's world and map files absolute (relative to folder)."""
+    for key in ('world', 'map'):
+        value = scenario.get(key)
+        if isinstance(value, str) and ('/' in value or value.endswith(('.yaml', '.yml'))) \
+                and not value.startswith('package://') and not Path(value).is_absolute():
+            scenario[key] = str((folder / Path(value).expanduser()).resolve())
 
 
 def shipped_scenarios_folder() -> Path:
@@ -335,11 +443,19 @@ def variant_documents(sweep: Sweep, variant: Variant,
     named moving obstacle (default 'person') gets the variant's changes; the runner writes
     the returned world document to a file and points the scenario's world at it. Raise
     SweepError when the person axis names an obstacle the world does not have.
+
+    The scenario axis picks the scenario (its world and map files made absolute); the
+    fault axis puts a fault step first, with the fault_onset_s axis's onset.
     """
-    doc = copy.deepcopy(sweep.scenario_document)
+    values = variant.values
+    if 'scenario' in values:
+        path, document = sweep.scenarios[values['scenario']]
+        doc = copy.deepcopy(document)
+        _absolute(doc['scenario'], path.parent)
+    else:
+        doc = copy.deepcopy(sweep.scenario_document)
     scenario = doc['scenario']
     scenario['name'] = variant.name(sweep.name)
-    values = variant.values
     if 'seed' in values:
         scenario['seed'] = values['seed']
     if 'world' in values:
@@ -361,6 +477,11 @@ def variant_documents(sweep: Sweep, variant: Variant,
             else:
                 steps.append(step)
         scenario['steps'] = steps
+    if values.get('fault') is not None:
+        fault = dict(values['fault'])
+        if 'fault_onset_s' in values:
+            fault['onset_s'] = values['fault_onset_s']
+        scenario['steps'] = [{'fault': fault}] + list(scenario['steps'])
     world = None
     if 'person' in values:
         if world_document is None:

@@ -6,7 +6,10 @@ Rates come from :mod:`mecanum_bringup.sweep_stats`; rows are the
 with matplotlib's object API on an Agg canvas (no pyplot, no display), as in
 :mod:`mecanum_bringup.scenario_report`. The HTML page is self-contained (the plot is
 embedded as a base64 PNG); it links the worst variants' run folders relatively, so the
-sweep's folder can be moved or served as a whole.
+sweep's folder can be moved or served as a whole. Where the variants measured it, every
+report also gives the least zone clearance (the footprint's least clearance to the
+authorised zone's border, m, < 0: out of it; see sweep_stats): per variant (JUnit
+property ``min_zone_clearance_m``), overall, and per value of each axis.
 """
 
 import base64
@@ -19,7 +22,8 @@ import xml.etree.ElementTree as ElementTree
 
 from mecanum_bringup.scenario_report import one_line, xml_text
 from mecanum_bringup.sweep_stats import (
-    axis_rates, Change, criterion_rates, failed_criteria, Rate, value_label, VariantChange,
+    axis_clearances, axis_rates, Change, clearance_order, criterion_rates, failed_criteria,
+    least_clearance, LeastClearance, Rate, summary_axes, value_label, VariantChange,
     worst_variants)
 from mecanum_bringup.sweep_store import VariantRow
 
@@ -50,6 +54,16 @@ def _fixed_width(rows: Sequence[Sequence[str]], right: Sequence[int] = ()) -> Li
         line(row) for row in rows[1:]]
 
 
+def _metres(value: Optional[float]) -> str:
+    return f'{value:.3f} m' if value is not None and math.isfinite(value) else '-'
+
+
+def _least_text(least: LeastClearance) -> str:
+    """Return e.g. '-0.050 m in tour_0001; 1 of 3 measured variants below 0 m'."""
+    return (f'{_metres(least.clearance_m)} in {least.variant}; {least.below_zero} of '
+            f'{least.measured} measured variant{"" if least.measured == 1 else "s"} below 0 m')
+
+
 def _status_counts(rows: Sequence[VariantRow]) -> str:
     counts = {status: sum(row.status == status for row in rows)
               for status in ('OK', 'UNEXPECTED', 'ERROR')}
@@ -62,7 +76,8 @@ def rates_table(rows: Sequence[VariantRow]) -> str:
     Return a fixed-width table of the failure rates and a summary line.
 
     One line per rate (the verdict first, then the criteria): criterion, failures/n, rate,
-    95 % CI (Wilson). The verdict counts ERROR rows as failures.
+    95 % CI (Wilson). The verdict counts ERROR rows as failures. When some variant
+    measured it, a last line gives the least zone clearance and its variant.
     """
     table = [('criterion', 'failures/n', 'rate', '95 % CI')]
     for rate in criterion_rates(rows):
@@ -70,6 +85,9 @@ def rates_table(rows: Sequence[VariantRow]) -> str:
                       _percent(rate.rate) if rate.n else '-', _interval(rate)))
     lines = _fixed_width(table, right=(1, 2, 3))
     lines.append(_status_counts(rows))
+    least = least_clearance(rows)
+    if least.measured:
+        lines.append(f'least zone clearance: {_least_text(least)}')
     return '\n'.join(lines) + '\n'
 
 
@@ -174,8 +192,9 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
     A testcase is named by the row's name, classname = sweep_name, time = its wall-clock
     time. Status UNEXPECTED gives a <failure> (message = first_failure), ERROR an
     <error> (message = error); OK rows (expected failures included) pass. Each testcase
-    has <properties> with the variant's axis values (as JSON-ish labels) and its status,
-    and a <system-out> with the values, the failed criteria and the run folder.
+    has <properties> with the variant's axis values (as JSON-ish labels), its status and,
+    when measured, min_zone_clearance_m (m, 3 decimals), and a <system-out> with the
+    values, the failed criteria, the least zone clearance and the run folder.
     """
     rows = sorted(rows, key=lambda row: row.index)
 
@@ -196,6 +215,10 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
                 row.values.items()):
             ElementTree.SubElement(properties, 'property', {
                 'name': xml_text(key), 'value': xml_text(value_label(value))})
+        clearance = row.min_zone_clearance_m
+        if clearance is not None and math.isfinite(clearance):
+            ElementTree.SubElement(properties, 'property', {
+                'name': 'min_zone_clearance_m', 'value': f'{clearance:.3f}'})
         if row.status == 'ERROR':
             error = ElementTree.SubElement(case, 'error', {
                 'message': xml_text(one_line(row.error, 500)), 'type': 'ScenarioError'})
@@ -212,7 +235,7 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
         system_out.text = xml_text(
             f'{_values_text(row)}\nstatus {row.status}, verdict {row.verdict or "-"} '
             f'(expected {row.expected})\nfailed criteria: {", ".join(failed) or "none"}\n'
-            f'run folder: {row.run_dir or "-"}')
+            f'least zone clearance: {_metres(clearance)}\nrun folder: {row.run_dir or "-"}')
     ElementTree.indent(suite)
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
             + ElementTree.tostring(suite, encoding='unicode') + '\n')
@@ -245,6 +268,13 @@ def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]],
     return f'<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
 
 
+def _least_cell(least: LeastClearance) -> str:
+    """Return e.g. '-0.050 m (tour_0001)', or '-' when no variant measured it."""
+    if least.clearance_m is None:
+        return '-'
+    return f'{_metres(least.clearance_m)} ({html.escape(least.variant)})'
+
+
 _STYLE = ('body{font-family:sans-serif;margin:2em;max-width:70em}'
           'table{border-collapse:collapse;margin:0.5em 0 1.5em}'
           'th,td{border:1px solid #ccc;padding:0.25em 0.6em;text-align:left;'
@@ -264,13 +294,20 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
     worst_count variants (sweep_stats.worst_variants) with their values, failed criteria,
     first failure or error, and relative links to their run folder's run.png,
     summary.json and bag/ when those exist. A row's relative run_dir is taken relative to
-    runs_base (default: out_dir).
+    runs_base (default: out_dir). The axes are axes and, for an axis of mappings with a
+    kind (faults), 'AXIS.kind' after it (sweep_stats.summary_axes). When some variant
+    measured its least zone clearance, the per-axis tables give each value's least (and
+    its variant), a section gives the overall least and the worst_count variants of
+    least clearance, and the worst variants table gives each one's.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     base = Path(runs_base) if runs_base is not None else out_dir
     esc = html.escape
     rows = sorted(rows, key=lambda row: row.index)
+    axes = summary_axes(rows, axes)
+    least = least_clearance(rows)
+    clearances = least.measured > 0
 
     png_path = out_dir / 'rates.png'
     plot_axis_rates(rows, axes, png_path)
@@ -296,11 +333,35 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
     for axis in axes:
         rates = axis_rates(rows, axis)
         if rates:
+            header = ('value', 'failures/n', 'rate', '95 % CI')
+            cells = [(esc(label), f'{rate.failures}/{rate.n}', _percent(rate.rate),
+                      _interval(rate)) for label, rate in rates]
+            if clearances:   # the same groups, in the same order
+                header += ('least zone clearance',)
+                cells = [row_cells + (_least_cell(group),) for row_cells, group in
+                         zip(cells, axis_clearances(rows, axis))]
             parts.append(f'<h3>{esc(axis)}</h3>')
-            parts.append(_html_table(
-                ('value', 'failures/n', 'rate', '95 % CI'),
-                [(esc(label), f'{rate.failures}/{rate.n}', _percent(rate.rate),
-                  _interval(rate)) for label, rate in rates], numeric=(1, 2, 3)))
+            parts.append(_html_table(header, cells, numeric=(1, 2, 3, 4)))
+
+    if clearances:
+        parts += ['<h2>Zone clearance</h2>',
+                  f"<p>The footprint's least clearance to the authorised zone's border "
+                  f'(m; below 0 it left the zone): least {esc(_least_text(least))}; '
+                  f'{least.n - least.measured} not measured. The '
+                  f'{min(max(0, worst_count), least.measured)} least clearances (every '
+                  "variant's is in junit.xml and results.sqlite):</p>"]
+        least_rows = []
+        for row in clearance_order(rows)[:max(0, worst_count)]:
+            judged = row.criteria.get('stay_in_zone')
+            links = ' '.join(f'<a href="{esc(link)}">{esc(name)}</a>'
+                             for name, link in _run_links(row, out_dir, base))
+            least_rows.append((
+                esc(row.name), _metres(row.min_zone_clearance_m),
+                '-' if judged is None else 'pass' if judged else 'FAIL', esc(row.status),
+                '<br>'.join(esc(line) for line in _values_text(row).splitlines()) or '-',
+                links or '-'))
+        parts.append(_html_table(('variant', 'least zone clearance', 'stay_in_zone',
+                                  'status', 'values', 'run'), least_rows, numeric=(1,)))
 
     worst = worst_variants(rows, worst_count)
     parts.append('<h2>Worst variants</h2>')
@@ -312,13 +373,16 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
             detail = row.error if row.status == 'ERROR' else row.first_failure
             links = ' '.join(f'<a href="{esc(link)}">{esc(name)}</a>'
                              for name, link in _run_links(row, out_dir, base))
-            worst_rows.append((
+            cells = (
                 esc(row.name), f'<span class="bad">{esc(row.status)}</span>',
                 '<br>'.join(esc(line) for line in _values_text(row).splitlines()) or '-',
                 esc(', '.join(failed_criteria(row))) or '-',
-                esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-'))
-        parts.append(_html_table(('variant', 'status', 'values', 'failed criteria',
-                                  'first failure / error', 'run'), worst_rows))
+                esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-')
+            worst_rows.append(cells + ((_metres(row.min_zone_clearance_m),)
+                                       if clearances else ()))
+        header = ('variant', 'status', 'values', 'failed criteria', 'first failure / error',
+                  'run') + (('least zone clearance',) if clearances else ())
+        parts.append(_html_table(header, worst_rows, numeric=(6,)))
     parts.append('</body></html>')
     path = out_dir / 'report.html'
     path.write_text('\n'.join(parts) + '\n', encoding='utf-8')

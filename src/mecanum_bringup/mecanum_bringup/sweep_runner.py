@@ -47,7 +47,9 @@ import sys
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, TextIO
 
+from mecanum_bringup.scenario_judge import min_zone_clearance_m
 from mecanum_bringup.scenario_loader import load_scenario, ScenarioError
+from mecanum_bringup.scenario_report import ScenarioResult
 from mecanum_bringup.scenario_runner import (
     interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, run_scenario,
     RunOptions, stopping_cleanly_on_signals)
@@ -159,6 +161,17 @@ def run_variant(index: int, name: str, values: Dict[str, Any], scenario_doc: Dic
         lockstep=bool(options.get('lockstep', True))))
     if INTERRUPTED.is_set():
         return None
+    return variant_row(index, name, values, result, str(runs / name))
+
+
+def variant_row(index: int, name: str, values: Dict[str, Any], result: ScenarioResult,
+                run_dir: str) -> VariantRow:
+    """
+    Return the store's row of a finished variant: its status, criteria and least clearance.
+
+    min_zone_clearance_m is the verdict's stay_in_zone least footprint clearance (m;
+    None when not judged or not measured); worker and finished_at are this process's.
+    """
     verdict = result.verdict
     first = verdict.first_failure if verdict else None
     return VariantRow(
@@ -167,8 +180,9 @@ def run_variant(index: int, name: str, values: Dict[str, Any], scenario_doc: Dic
         criteria={c.name: bool(c.passed) for c in verdict.criteria} if verdict else {},
         first_failure=first.detail if first else '',
         sim_time_s=_finite(result.sim_time_s), wall_time_s=_finite(result.wall_time_s),
-        run_dir=str(runs / name), error=result.error, worker=_worker_name(),
-        finished_at=time.time())
+        run_dir=run_dir, error=result.error, worker=_worker_name(),
+        finished_at=time.time(),
+        min_zone_clearance_m=_finite(min_zone_clearance_m(verdict)) if verdict else None)
 
 
 def _worker_name() -> str:

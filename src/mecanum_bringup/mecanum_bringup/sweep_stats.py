@@ -9,13 +9,19 @@ n counts only the variants in which it was judged.
 
 Every rate comes with its Wilson score interval (95 %), which stays inside [0, 1] and
 is sensible for 0 or n failures and for small n, unlike the normal approximation.
+
+The least zone clearance (a row's ``min_zone_clearance_m``: the footprint's least
+clearance to the authorised zone's border, m, < 0 out of it) is summarised over all rows
+and per value of each axis, in the same groups as the failure rates. Any axis works the
+same way; an axis whose values are mappings with a ``kind`` (faults) is also summarised
+per kind, as the axis ``AXIS.kind`` (:func:`summary_axes`).
 """
 
 from dataclasses import dataclass
 import json
 import math
 import re
-from typing import Any, Dict, List, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from mecanum_bringup.sweep_store import VariantRow
 
@@ -27,7 +33,10 @@ MAX_DISTINCT_VALUES = 8
 BINS = 5
 #: The name of the overall rate (a variant's status is not 'OK').
 VERDICT = 'verdict'
+#: The key of a mapping value (a fault) that names its kind: 'AXIS.kind' groups by it.
+KIND = 'kind'
 _STEP = re.compile(r'step (\d+)')
+_MISSING = object()
 
 
 def wilson_interval(failures: int, n: int, z: float = Z_95) -> Tuple[float, float]:
@@ -195,18 +204,59 @@ def _bin_labels(low: float, high: float) -> List[str]:
     return [f'{edges[k]:.{digits}f}-{edges[k + 1]:.{digits}f}' for k in range(BINS)]
 
 
-def axis_rates(rows: Sequence[VariantRow], axis: str) -> List[Tuple[str, Rate]]:
+def _kinds(value: Any) -> Optional[str]:
+    """Return a mapping's kind, a list of mappings' kinds joined by '+', or None."""
+    if isinstance(value, dict) and isinstance(value.get(KIND), str):
+        return value[KIND]
+    if (isinstance(value, list) and value
+            and all(isinstance(item, dict) and isinstance(item.get(KIND), str)
+                    for item in value)):
+        return '+'.join(item[KIND] for item in value)
+    return None
+
+
+def axis_value(row: VariantRow, axis: str) -> Any:
     """
-    Return (label, verdict failure rate) for each value of one axis, in value order.
+    Return the row's value of axis, or _MISSING when the row has no such axis.
+
+    axis is an axis name, or 'AXIS.kind': the kind of the axis's value (see _kinds;
+    a value without a kind, e.g. null for no fault, stands for itself).
+    """
+    if axis in row.values:
+        return row.values[axis]
+    base, dot, key = axis.rpartition('.')
+    if dot and key == KIND and base in row.values:
+        value = row.values[base]
+        kind = _kinds(value)
+        return value if kind is None else kind
+    return _MISSING
+
+
+def summary_axes(rows: Sequence[VariantRow], axes: Sequence[str]) -> List[str]:
+    """Return axes, each followed by 'AXIS.kind' when some row's value of it has a kind."""
+    names: List[str] = []
+    for axis in axes:
+        names.append(axis)
+        if any(_kinds(row.values.get(axis)) is not None for row in rows):
+            names.append(f'{axis}.{KIND}')
+    return names
+
+
+def axis_groups(rows: Sequence[VariantRow], axis: str) -> List[Tuple[str, List[VariantRow]]]:
+    """
+    Return (label, rows) for each value of one axis (or 'AXIS.kind'), in value order.
 
     Rows without the axis are skipped. A numeric axis with more than 8 distinct values
     is cut into 5 equal-width bins between its smallest and largest value (labelled
     e.g. '0.20-0.36'; the last bin includes its upper edge; empty bins are left out);
     other numeric axes are sorted by value, and any other axis (worlds, poses, person
-    changes, goal subsets) keeps the order in which its values first appear by index.
+    changes, goal subsets, faults) keeps the order in which its values first appear by
+    index.
     """
-    with_axis = sorted((row for row in rows if axis in row.values), key=lambda r: r.index)
-    values = [row.values[axis] for row in with_axis]
+    pairs = sorted(((row, axis_value(row, axis)) for row in rows), key=lambda p: p[0].index)
+    pairs = [(row, value) for row, value in pairs if value is not _MISSING]
+    with_axis = [row for row, _ in pairs]
+    values = [value for _, value in pairs]
     groups: Dict[str, List[VariantRow]] = {}
     numeric = bool(values) and all(_is_number(value) for value in values)
     distinct = sorted(set(values)) if numeric else []
@@ -216,16 +266,65 @@ def axis_rates(rows: Sequence[VariantRow], axis: str) -> List[Tuple[str, Rate]]:
         binned: List[List[VariantRow]] = [[] for _ in labels]
         for row, value in zip(with_axis, values):
             binned[min(BINS - 1, int((value - low) / (high - low) * BINS))].append(row)
-        groups = {label: group for label, group in zip(labels, binned) if group}
-    else:
-        if numeric:
-            order = sorted(range(len(values)), key=lambda i: values[i])
-            with_axis = [with_axis[i] for i in order]
-        for row in with_axis:
-            groups.setdefault(value_label(row.values[axis]), []).append(row)
+        return [(label, group) for label, group in zip(labels, binned) if group]
+    if numeric:
+        order = sorted(range(len(values)), key=lambda i: values[i])
+        with_axis = [with_axis[i] for i in order]
+        values = [values[i] for i in order]
+    for row, value in zip(with_axis, values):
+        groups.setdefault(value_label(value), []).append(row)
+    return list(groups.items())
+
+
+def axis_rates(rows: Sequence[VariantRow], axis: str) -> List[Tuple[str, Rate]]:
+    """Return (label, verdict failure rate) for each group of axis_groups(rows, axis)."""
     return [(label, Rate(label, sum(row.failed for row in group), len(group),
                          sum(row.status == 'ERROR' for row in group)))
-            for label, group in groups.items()]
+            for label, group in axis_groups(rows, axis)]
+
+
+@dataclass(frozen=True)
+class LeastClearance:
+    """
+    The least zone clearance of a group of variants (label), and which variant had it.
+
+    clearance_m: the least min_zone_clearance_m (m; None when no row of the group has
+    one), variant: that row's name (the lowest index among ties; '' if none); measured:
+    the rows with a clearance, below_zero: of them, those below 0 (the footprint left the
+    zone; 0 is inside); n: the rows of the group.
+    """
+
+    label: str
+    clearance_m: Optional[float]
+    variant: str
+    measured: int
+    below_zero: int
+    n: int
+
+
+def _clearance(row: VariantRow) -> Optional[float]:
+    value = row.min_zone_clearance_m
+    return float(value) if value is not None and math.isfinite(value) else None
+
+
+def clearance_order(rows: Sequence[VariantRow]) -> List[VariantRow]:
+    """Return the rows with a clearance, the least first (ties by index)."""
+    measured = [row for row in rows if _clearance(row) is not None]
+    return sorted(measured, key=lambda row: (_clearance(row), row.index))
+
+
+def least_clearance(rows: Sequence[VariantRow], label: str = 'all') -> LeastClearance:
+    """Return the least clearance of rows (see LeastClearance), named label."""
+    ordered = clearance_order(rows)
+    if not ordered:
+        return LeastClearance(label, None, '', 0, 0, len(rows))
+    return LeastClearance(label, _clearance(ordered[0]), ordered[0].name, len(ordered),
+                          sum(_clearance(row) < 0.0 for row in ordered), len(rows))
+
+
+def axis_clearances(rows: Sequence[VariantRow], axis: str) -> List[LeastClearance]:
+    """Return the least clearance of each group of axis_groups(rows, axis)."""
+    return [least_clearance(group, label) for label, group in axis_groups(rows, axis)]
 
 
 def failed_criteria(row: VariantRow) -> List[str]:

@@ -12,11 +12,14 @@ Tables::
     variants(idx INTEGER PRIMARY KEY, name TEXT, values_json TEXT, status TEXT,
              verdict TEXT, expected TEXT, criteria_json TEXT, first_failure TEXT,
              sim_time_s REAL, wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT,
-             finished_at REAL)
+             finished_at REAL, min_zone_clearance_m REAL)
 
 ``status`` is the scenario runner's: 'OK' (verdict as expected), 'UNEXPECTED' or
 'ERROR' (no verdict: the run could not be judged). ``criteria_json`` maps each criterion
-name ('step 1', 'no_collision', ...) to whether it passed.
+name ('step 1', 'no_collision', ...) to whether it passed. ``min_zone_clearance_m`` is
+the run's least footprint clearance to the authorised zone's border (m, < 0: the
+footprint left the zone; NULL: not measured; see scenario_judge). A store made before
+that column existed reads with NULL there, and gets the column when a sweep resumes it.
 """
 
 from dataclasses import dataclass, field
@@ -52,6 +55,7 @@ class VariantRow:
     error: str = ''
     worker: str = ''
     finished_at: float = 0.0
+    min_zone_clearance_m: Optional[float] = None   # m; None: not measured
 
     @property
     def failed(self) -> bool:
@@ -61,7 +65,9 @@ class VariantRow:
 
 _COLUMNS = ('idx', 'name', 'values_json', 'status', 'verdict', 'expected', 'criteria_json',
             'first_failure', 'sim_time_s', 'wall_time_s', 'run_dir', 'error', 'worker',
-            'finished_at')
+            'finished_at', 'min_zone_clearance_m')
+#: Columns added after the first stores, with their types (added to an old store on open).
+_ADDED_COLUMNS = {'min_zone_clearance_m': 'REAL'}
 
 
 class ResultsStore:
@@ -83,7 +89,7 @@ class ResultsStore:
                     'values_json TEXT, status TEXT, verdict TEXT, expected TEXT, '
                     'criteria_json TEXT, first_failure TEXT, sim_time_s REAL, '
                     'wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT, '
-                    'finished_at REAL)')
+                    'finished_at REAL, min_zone_clearance_m REAL)')
                 meta = dict(self._db.execute('SELECT key, value FROM sweep'))
                 if not meta:
                     self._db.executemany('INSERT INTO sweep VALUES (?, ?)', [
@@ -98,6 +104,15 @@ class ResultsStore:
                 f'{self.path} holds the results of another sweep ({meta.get("name")!r}, or '
                 'the same sweep with other axes, samples or seed): give this sweep another '
                 '--out folder, or delete the store to start again')
+        try:   # a store from before a column was added gets it (NULL in the old rows)
+            with self._db:
+                present = _column_names(self._db)
+                for column, kind in _ADDED_COLUMNS.items():
+                    if column not in present:
+                        self._db.execute(f'ALTER TABLE variants ADD COLUMN {column} {kind}')
+        except sqlite3.DatabaseError as error:
+            self._db.close()
+            raise StoreError(f'{self.path}: cannot add the new columns ({error})') from None
 
     def close(self) -> None:
         """Close the database."""
@@ -120,7 +135,7 @@ class ResultsStore:
                 (row.index, row.name, json.dumps(row.values, sort_keys=True), row.status,
                  row.verdict, row.expected, json.dumps(row.criteria), row.first_failure,
                  row.sim_time_s, row.wall_time_s, row.run_dir, row.error, row.worker,
-                 row.finished_at or time.time()))
+                 row.finished_at or time.time(), row.min_zone_clearance_m))
 
     def done_indices(self) -> set:
         """Return the indices of the variants that have a row."""
@@ -128,7 +143,7 @@ class ResultsStore:
 
     def rows(self) -> List[VariantRow]:
         """Return every row, by index."""
-        cursor = self._db.execute(f'SELECT {", ".join(_COLUMNS)} FROM variants ORDER BY idx')
+        cursor = self._db.execute(_select(self._db))
         return [_row(record) for record in cursor]
 
 
@@ -140,7 +155,7 @@ def read_rows(path: PathLike) -> List[VariantRow]:
     try:
         db = sqlite3.connect(f'file:{path}?mode=ro', uri=True)
         try:
-            cursor = db.execute(f'SELECT {", ".join(_COLUMNS)} FROM variants ORDER BY idx')
+            cursor = db.execute(_select(db))
             return [_row(record) for record in cursor]
         finally:
             db.close()
@@ -159,9 +174,22 @@ def read_meta(path: PathLike) -> Dict[str, str]:
         db.close()
 
 
+def _column_names(db: sqlite3.Connection) -> set:
+    return {record[1] for record in db.execute('PRAGMA table_info(variants)')}
+
+
+def _select(db: sqlite3.Connection) -> str:
+    """Return the SELECT of every row; NULL for a column an old (read-only) store lacks."""
+    present = _column_names(db)
+    columns = [c if c in present or c not in _ADDED_COLUMNS else f'NULL AS {c}'
+               for c in _COLUMNS]
+    return f'SELECT {", ".join(columns)} FROM variants ORDER BY idx'
+
+
 def _row(record: Iterable[Any]) -> VariantRow:
     (index, name, values, status, verdict, expected, criteria, first_failure, sim_time_s,
-     wall_time_s, run_dir, error, worker, finished_at) = record
+     wall_time_s, run_dir, error, worker, finished_at, min_zone_clearance_m) = record
     return VariantRow(index, name, json.loads(values), status, verdict, expected,
                       json.loads(criteria or '{}'), first_failure or '', sim_time_s,
-                      wall_time_s, run_dir or '', error or '', worker or '', finished_at)
+                      wall_time_s, run_dir or '', error or '', worker or '', finished_at,
+                      min_zone_clearance_m)

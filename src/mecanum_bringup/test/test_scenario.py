@@ -1,12 +1,14 @@
 """Tests of the scenario files (real files in tmp_path and scenarios/) and of judge()."""
 
+import dataclasses
 import math
 from pathlib import Path
 import re
 import shutil
 import textwrap
 
-from mecanum_bringup.scenario_judge import judge, localization_errors, track_array
+from mecanum_bringup.scenario_judge import (
+    footprint_clearances, judge, localization_errors, min_zone_clearance_m, track_array)
 from mecanum_bringup.scenario_loader import (
     build_world, find_scenarios, load_scenario, scenario_world_document, ScenarioError)
 from mecanum_bringup.scenario_model import (
@@ -195,7 +197,9 @@ def test_a_zone_with_an_exclusion_reaches_the_world_and_the_judge(tmp_path):
                        step_results=[StepResult('goal', 'reached', 0, '', 0.0, 5.0)])
     failed = judge(scenario, record).first_failure
     assert failed.name == 'stay_in_zone'
-    assert failed.detail == 'stay_in_zone: left the zone at t=4.0 s (6.00, 3.00)'
+    # (6, 3) is 0.5 m inside the exclusion: -0.5 - 0.2 = -0.7 m.
+    assert failed.detail == ('stay_in_zone: least clearance -0.700 m at t=4.0 s (6.00, 3.00): '
+                             'the footprint (radius 0.20 m) left the zone')
 
 
 def test_new_steps_and_command_expectations_load(tmp_path):
@@ -360,10 +364,10 @@ BAD_BODIES = [
     ('  steps: []\n', 'steps: must be a non-empty list of steps'),
     ('  steps: {goal: {x: 1, y: 1}}\n', 'steps: must be a non-empty list of steps'),
     ('  steps:\n  - goal: {x: 1, y: 1}\n    wait: {duration_s: 1}\n',
-     'steps[0]: needs exactly one of goal, waypoints, command, cmd_vel, wait, freeze, got '
-     'goal, wait'),
+     'steps[0]: needs exactly one of goal, waypoints, command, cmd_vel, wait, freeze, fault, '
+     'got goal, wait'),
     ('  steps:\n  - fly: {x: 1}\n', 'steps[0]: needs exactly one of goal, waypoints, command, '
-     'cmd_vel, wait, freeze, got none'),
+     'cmd_vel, wait, freeze, fault, got none'),
     ('  steps:\n  - waypoints: {poses: []}\n',
      'steps[0].waypoints.poses: must be a non-empty list of poses {x, y, yaw}, not []'),
     ('  steps:\n  - waypoints: [{x: 1, y: 2}]\n',
@@ -507,7 +511,9 @@ def test_a_good_run_passes_with_one_line_per_step_and_criterion(judged):
         'completed': 'completed: all 5 steps run in 37.0 s',
         'max_duration_s': 'max_duration_s: 37.0 s <= 60 s',
         'no_collision': 'no_collision: 0 collisions',
-        'stay_in_zone': 'stay_in_zone: inside at all 51 true poses',
+        # Every pose is 1.9 m from y = 0.1 (and the first from x = 0.1): 1.9 - 0.2 m.
+        'stay_in_zone': 'stay_in_zone: least clearance 1.700 m at t=0.0 s (2.00, 2.00): the '
+                        'footprint (radius 0.20 m) stayed inside at all 51 true poses',
         'max_localization_error_m': 'max_localization_error_m: 0.05 m <= 0.2 m (11 estimates)',
     }
 
@@ -526,7 +532,10 @@ def test_leaving_the_zone_fails_the_run_and_says_where(judged):
     record.truth = np.vstack([record.truth, [[12.3, 10.02, 3.1, 0.0]]])
     verdict = judge(judged, record)
     assert verdict.verdict == 'fail'
-    assert verdict.first_failure.detail == 'stay_in_zone: left the zone at t=12.3 s (10.02, 3.10)'
+    # 0.12 m beyond x = 9.9: -0.12 - 0.2 = -0.32 m.
+    assert verdict.first_failure.detail == (
+        'stay_in_zone: least clearance -0.320 m at t=12.3 s (10.02, 3.10): the footprint '
+        '(radius 0.20 m) left the zone')
 
 
 def test_no_ground_truth_fails_stay_in_zone_and_no_zone_passes(tmp_path, judged):
@@ -667,6 +676,127 @@ def test_localization_errors_skip_estimates_outside_the_truth_and_bad_rows():
         localization_errors(np.zeros((3, 3)), estimate)
     # Sorted by time, non-finite rows dropped.
     np.testing.assert_array_equal(track_array(truth)[:, 0], [0.0, 10.0])
+
+
+# --- stay_in_zone: the footprint, and the least clearance ------------------------------
+# clearance = signed distance from the centre to the zone's border (> 0 inside) minus the
+# footprint radius (motor_params.yaml: 0.2 m); the criterion fails below 0.
+SQUARE = make_zone([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]])
+#: An L: the square 0..4 without its upper right quarter; (2, 2) is its concave corner.
+ELL = make_zone([[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [2.0, 2.0], [2.0, 4.0], [0.0, 4.0]])
+
+
+def zoned(tmp_path, zone):
+    """Return MINIMAL (one goal) with zone as its authorised zone and only stay_in_zone."""
+    scenario = load_scenario(write(tmp_path, MINIMAL, 'zoned.yaml'))
+    return dataclasses.replace(scenario, authorised_zone=zone, criteria=Criteria(
+        no_collision=False, stay_in_zone=True))
+
+
+def zone_record(points):
+    """Return a reached goal with a truth track through points (x, y), one a second."""
+    truth = np.array([[float(t), x, y, 0.0] for t, (x, y) in enumerate(points)])
+    return RunRecord(truth=truth, step_results=[StepResult('goal', 'reached', 0, '', 0.0, 5.0)],
+                     duration_s=5.0)
+
+
+def zone_line(verdict):
+    return next(c for c in verdict.criteria if c.name == 'stay_in_zone')
+
+
+def test_stay_in_zone_fails_when_the_footprint_leaves_the_zone_with_its_centre_inside(
+        tmp_path):
+    assert ROBOT.footprint_radius_m == 0.2   # the hand-worked numbers below use it
+    scenario = zoned(tmp_path, SQUARE)
+    # Centres 2.0, 1.0, 0.1, 0.1 m from the border x = 4 (y = 2 or 2.5: 1.5 m or more
+    # from the others): clearances 1.8, 0.8, -0.1, -0.1 m; the least first at t = 2.
+    verdict = judge(scenario, zone_record([(2.0, 2.0), (3.0, 2.0), (3.9, 2.0), (3.9, 2.5)]))
+    line = zone_line(verdict)
+    assert verdict.verdict == 'fail' and not line.passed
+    assert line.min_clearance_m == pytest.approx(-0.1)
+    assert (line.t_s, line.x_m, line.y_m) == (2.0, 3.9, 2.0)
+    assert line.footprint_radius_m == 0.2
+    assert line.detail == ('stay_in_zone: least clearance -0.100 m at t=2.0 s (3.90, 2.00): '
+                           'the footprint (radius 0.20 m) left the zone')
+
+
+def test_stay_in_zone_passes_with_the_footprint_inside_and_reports_the_least_clearance(
+        tmp_path):
+    scenario = zoned(tmp_path, SQUARE)
+    # 0.3 m from x = 4: clearance 0.3 - 0.2 = 0.1 m.
+    verdict = judge(scenario, zone_record([(2.0, 2.0), (3.0, 2.0), (3.7, 2.0), (3.7, 2.5)]))
+    line = zone_line(verdict)
+    assert verdict.verdict == 'pass' and line.passed
+    assert line.min_clearance_m == pytest.approx(0.1)
+    assert line.detail == ('stay_in_zone: least clearance 0.100 m at t=2.0 s (3.70, 2.00): '
+                           'the footprint (radius 0.20 m) stayed inside at all 4 true poses')
+
+
+def test_the_footprint_radius_comes_from_the_robot_unless_given(tmp_path):
+    scenario = zoned(tmp_path, SQUARE)
+    record = zone_record([(3.9, 2.0)])
+    assert zone_line(judge(scenario, record)).passed is False
+    # A 0.05 m radius fits in the 0.1 m left: clearance 0.05 m.
+    line = zone_line(judge(scenario, record, footprint_radius_m=0.05))
+    assert line.passed and line.min_clearance_m == pytest.approx(0.05)
+    # Exactly on the border (clearance 0): inside, no tolerance either way.
+    line = zone_line(judge(scenario, zone_record([(3.75, 2.0)]), footprint_radius_m=0.25))
+    assert line.passed and line.min_clearance_m == 0.0
+    for bad in (-0.1, math.nan, math.inf):
+        with pytest.raises(ValueError, match='footprint_radius_m'):
+            judge(scenario, record, footprint_radius_m=bad)
+
+
+def test_stay_in_zone_near_a_concave_corner_measures_to_the_corner(tmp_path):
+    scenario = zoned(tmp_path, ELL)
+    # (1.85, 1.85) is 0.15 m from both lines x = 2 and y = 2, but the border there is
+    # the corner (2, 2), 0.15 * sqrt(2) = 0.2121 m away: clearance 0.0121 m, inside.
+    # (1, 1) and (1, 3) are 1 m from the border: 0.8 m.
+    line = zone_line(judge(scenario, zone_record([(1.0, 1.0), (1.85, 1.85), (1.0, 3.0)])))
+    assert line.passed
+    assert line.min_clearance_m == pytest.approx(0.15 * math.sqrt(2.0) - 0.2)
+    assert (line.t_s, line.x_m, line.y_m) == (1.0, 1.85, 1.85)
+    # (1.9, 1.9): 0.1 * sqrt(2) = 0.1414 m from the corner: -0.0586 m, the footprint is out.
+    line = zone_line(judge(scenario, zone_record([(1.0, 1.0), (1.9, 1.9), (1.0, 3.0)])))
+    assert not line.passed
+    assert line.min_clearance_m == pytest.approx(0.1 * math.sqrt(2.0) - 0.2)
+    # In the bottom arm, 0.1 m below the edge y = 2 (x 2..4): -0.1 m.
+    line = zone_line(judge(scenario, zone_record([(3.0, 1.0), (3.0, 1.9)])))
+    assert not line.passed and line.min_clearance_m == pytest.approx(-0.1)
+
+
+def test_the_first_exit_is_named_when_the_least_clearance_comes_later(tmp_path):
+    scenario = zoned(tmp_path, SQUARE)
+    # Out at t = 1 (-0.05 m), deeper at t = 2 (-0.15 m), back in at t = 3.
+    line = zone_line(judge(scenario, zone_record([(2.0, 2.0), (3.85, 2.0), (3.95, 2.0),
+                                                  (3.0, 2.0)])))
+    assert line.min_clearance_m == pytest.approx(-0.15)
+    assert line.detail == ('stay_in_zone: least clearance -0.150 m at t=2.0 s (3.95, 2.00): '
+                           'the footprint (radius 0.20 m) left the zone, first at t=1.0 s '
+                           '(3.85, 2.00)')
+
+
+def test_no_zone_or_no_truth_gives_no_clearance(tmp_path):
+    scenario = zoned(tmp_path, None)
+    line = zone_line(judge(scenario, zone_record([(3.9, 2.0)])))
+    assert line.passed and line.detail == 'stay_in_zone: no zone declared'
+    assert line.min_clearance_m is None and min_zone_clearance_m(judge(
+        scenario, zone_record([(3.9, 2.0)]))) is None
+    line = zone_line(judge(zoned(tmp_path, SQUARE), zone_record([])))
+    assert not line.passed and line.min_clearance_m is None
+    # Disabled: no line, no clearance; enabled: the verdict carries the number.
+    disabled = dataclasses.replace(zoned(tmp_path, SQUARE), criteria=Criteria(
+        no_collision=False, stay_in_zone=False))
+    assert min_zone_clearance_m(judge(disabled, zone_record([(3.9, 2.0)]))) is None
+    assert min_zone_clearance_m(judge(zoned(tmp_path, SQUARE), zone_record(
+        [(3.9, 2.0)]))) == pytest.approx(-0.1)
+
+
+def test_footprint_clearances_are_vectorised():
+    clearances = footprint_clearances(SQUARE, [[0.0, 2.0, 2.0, 0.0], [1.0, 4.5, 2.0, 0.0]],
+                                      0.2)
+    np.testing.assert_allclose(clearances, [1.8, -0.7])
+    assert footprint_clearances(SQUARE, np.zeros((0, 4)), 0.2).shape == (0,)
 
 
 # --- the shipped scenarios -----------------------------------------------------------

@@ -1,5 +1,6 @@
 """Tests of the scenario reports: table, JUnit XML, JSON summary and the PNG plot."""
 
+import dataclasses
 import json
 import math
 import textwrap
@@ -12,6 +13,7 @@ from mecanum_bringup.scenario_model import CriterionResult, RunRecord, StepResul
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
 from mecanum_map_server.map_io import OccupancyMap
+from mecanum_safety.zone import make_zone
 import numpy as np
 import pytest
 from robot_simulation.world import find_world, load_world
@@ -147,6 +149,28 @@ def test_summary_json_values_by_hand(tmp_path):
     assert empty['localization_error_max_m'] is None and empty['distance_m'] == 0.0
     assert empty['duration_s'] is None
     json.dumps(empty, allow_nan=False)
+    # stay_in_zone is off in SCENARIO: no clearance measured.
+    assert summary['min_zone_clearance_m'] is None and summary['min_zone_clearance_at'] is None
+    assert summary['footprint_radius_m'] is None
+
+
+def test_summary_json_carries_the_least_zone_clearance(tmp_path):
+    path = tmp_path / 'zoned.yaml'
+    path.write_text(textwrap.dedent(SCENARIO).replace('stay_in_zone: false', 'stay_in_zone: true'))
+    scenario = dataclasses.replace(load_scenario(path), authorised_zone=make_zone(
+        [[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]]))
+    # Centre 0.1 m from x = 4 at t = 1 with the 0.2 m footprint (motor_params.yaml):
+    # clearance 0.1 - 0.2 = -0.1 m.
+    record = RunRecord(truth=np.array([[0.0, 2.0, 2.0, 0.0], [1.0, 3.9, 2.0, 0.0]]),
+                       duration_s=1.0)
+    summary = summary_json(scenario, record, judge(scenario, record))
+    assert summary['min_zone_clearance_m'] == -0.1
+    assert summary['min_zone_clearance_at'] == {'t_s': 1.0, 'x_m': 3.9, 'y_m': 2.0}
+    assert summary['footprint_radius_m'] == 0.2
+    zone = next(c for c in summary['criteria'] if c['name'] == 'stay_in_zone')
+    assert zone['passed'] is False and zone['detail'].startswith(
+        'stay_in_zone: least clearance -0.100 m at t=1.0 s (3.90, 2.00)')
+    assert json.loads(json.dumps(summary, allow_nan=False)) == summary
 
 
 def red_pixels(image):

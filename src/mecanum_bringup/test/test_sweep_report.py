@@ -174,3 +174,75 @@ def test_write_report_without_failures_and_from_a_store(tmp_path):
     assert '<td>0.3</td><td class="num">0/1</td>' in text
     root = ElementTree.parse(str(tmp_path / 'out' / 'junit.xml')).getroot()
     assert (root.get('tests'), root.get('failures'), root.get('errors')) == ('3', '0', '0')
+
+
+# --- the least zone clearance ---------------------------------------------------------
+SLIP = {'kind': 'wheel_slip', 'wheel': 'FL'}
+BLIND = {'kind': 'lidar_blinded', 'onset_s': 5.0}
+
+
+@pytest.fixture
+def clearances():
+    # index status      seed  fault          least clearance (m)
+    # 0     OK          0     wheel_slip     0.30
+    # 1     UNEXPECTED  1     wheel_slip     -0.05 (stay_in_zone failed)
+    # 2     OK          0     lidar_blinded  0.12
+    # 3     ERROR       1     lidar_blinded  - (not judged)
+    return [
+        row(0, 'OK', {'stay_in_zone': True}, {'seed': 0, 'fault': SLIP},
+            min_zone_clearance_m=0.30, run_dir='runs/tour_0000'),
+        row(1, 'UNEXPECTED', {'stay_in_zone': False}, {'seed': 1, 'fault': SLIP},
+            min_zone_clearance_m=-0.05, first_failure='stay_in_zone: least clearance -0.050 m'),
+        row(2, 'OK', {'stay_in_zone': True}, {'seed': 0, 'fault': BLIND},
+            min_zone_clearance_m=0.12),
+        row(3, 'ERROR', {}, {'seed': 1, 'fault': BLIND}, error='simulator died'),
+    ]
+
+
+def test_rates_table_ends_with_the_least_zone_clearance(clearances, rows):
+    lines = rates_table(clearances).splitlines()
+    assert lines[-2] == '4 variants: 2 as expected, 1 unexpected, 1 errors'
+    assert lines[-1] == ('least zone clearance: -0.050 m in tour_0001; 1 of 3 measured '
+                         'variants below 0 m')
+    # No clearance measured: no such line.
+    assert 'clearance' not in rates_table(rows)
+
+
+def test_junit_xml_gives_each_variant_its_least_zone_clearance(clearances):
+    root = ElementTree.fromstring(junit_xml(clearances, 'faults').encode('utf-8'))
+    cases = root.findall('testcase')
+    values = [{p.get('name'): p.get('value') for p in case.find('properties')}.get(
+        'min_zone_clearance_m') for case in cases]
+    assert values == ['0.300', '-0.050', '0.120', None]
+    assert 'least zone clearance: -0.050 m' in cases[1].find('system-out').text
+    assert 'least zone clearance: -' in cases[3].find('system-out').text
+
+
+def test_write_report_shows_the_least_clearance_per_variant_axis_value_and_fault_kind(
+        clearances, tmp_path):
+    text = write_report(clearances, 'faults', tmp_path, ['seed', 'fault']).read_text(
+        encoding='utf-8')
+    # Per axis value (seed 0: rows 0 and 2; seed 1: row 1, row 3 not measured), and per
+    # fault kind, an axis of its own that no code names.
+    assert '<h3>fault.kind</h3>' in text
+    assert ('<td>0</td><td class="num">0/2</td><td class="num">0.0 %</td>'
+            '<td class="num">0.0-65.8 %</td><td class="num">0.120 m (tour_0002)</td>') in text
+    assert '<td>1</td><td class="num">2/2</td>' in text
+    assert '<td class="num">-0.050 m (tour_0001)</td>' in text
+    kinds = text[text.index('<h3>fault.kind</h3>'):]
+    assert kinds.index('<td>wheel_slip</td>') < kinds.index('<td>lidar_blinded</td>')
+    # The zone clearance section: the overall least, then the variants, least first.
+    zone = text[text.index('<h2>Zone clearance</h2>'):text.index('<h2>Worst variants</h2>')]
+    assert 'least -0.050 m in tour_0001; 1 of 3 measured variants below 0 m; 1 not ' \
+        'measured. The 3 least clearances' in zone
+    assert zone.index('tour_0001') < zone.index('tour_0002') < zone.index('tour_0000')
+    assert 'tour_0003' not in zone
+    assert '<td class="num">-0.050 m</td><td>FAIL</td>' in zone
+    # The worst variants carry it too.
+    worst = text[text.index('<h2>Worst variants</h2>'):]
+    assert '<td class="num">-0.050 m</td>' in worst
+
+
+def test_a_report_without_clearances_has_no_clearance_section(rows, tmp_path):
+    text = write_report(rows, 'tour', tmp_path, ['world']).read_text(encoding='utf-8')
+    assert 'Zone clearance' not in text and 'least zone clearance' not in text

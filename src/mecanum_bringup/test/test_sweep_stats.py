@@ -1,7 +1,10 @@
 """Tests of the sweep statistics: Wilson intervals, rates, axes, worst variants, compare."""
 
+import sqlite3
+
 from mecanum_bringup.sweep_stats import (
-    axis_rates, compare, criterion_order, criterion_rates, Rate, value_label, variant_changes,
+    axis_clearances, axis_rates, clearance_order, compare, criterion_order, criterion_rates,
+    least_clearance, LeastClearance, Rate, summary_axes, value_label, variant_changes,
     wilson_interval, worst_variants)
 from mecanum_bringup.sweep_store import read_rows, ResultsStore, VariantRow
 import pytest
@@ -228,3 +231,105 @@ def test_rows_round_trip_through_the_results_store(rows, tmp_path):
     assert axis_rates(stored, 'spawn') == axis_rates(rows, 'spawn')
     assert [r.index for r in worst_variants(stored)] == [3, 2, 1]
     assert [c.verdict for c in compare(stored, rows)] == ['same'] * 6
+
+
+# --- the least zone clearance ---------------------------------------------------------
+SLIP_FL = {'kind': 'wheel_slip', 'wheel': 'FL', 'traction_factor': 0.2}
+SLIP_RR = {'kind': 'wheel_slip', 'wheel': 'RR', 'traction_factor': 0.1}
+
+
+@pytest.fixture
+def faulted():
+    # index status      seed  fault                        least clearance (m)
+    # 0     OK          0     wheel_slip FL                0.30
+    # 1     UNEXPECTED  1     wheel_slip RR                -0.05
+    # 2     OK          0     lidar_blinded at 5 s         0.12
+    # 3     ERROR       1     lidar_blinded at 8 s         - (not judged)
+    # 4     OK          0     none (null)                  0.50
+    return [
+        row(0, 'OK', {'stay_in_zone': T}, {'seed': 0, 'fault': SLIP_FL},
+            min_zone_clearance_m=0.30),
+        row(1, 'UNEXPECTED', {'stay_in_zone': F}, {'seed': 1, 'fault': SLIP_RR},
+            min_zone_clearance_m=-0.05),
+        row(2, 'OK', {'stay_in_zone': T},
+            {'seed': 0, 'fault': {'kind': 'lidar_blinded', 'onset_s': 5.0}},
+            min_zone_clearance_m=0.12),
+        row(3, 'ERROR', {}, {'seed': 1, 'fault': {'kind': 'lidar_blinded', 'onset_s': 8.0}}),
+        row(4, 'OK', {'stay_in_zone': T}, {'seed': 0, 'fault': None},
+            min_zone_clearance_m=0.50),
+    ]
+
+
+def test_the_least_clearance_names_its_variant_and_counts_those_below_zero(faulted):
+    assert least_clearance(faulted) == LeastClearance('all', -0.05, 'tour_0001', 4, 1, 5)
+    assert least_clearance([], 'none') == LeastClearance('none', None, '', 0, 0, 0)
+    assert least_clearance([faulted[3]]) == LeastClearance('all', None, '', 0, 0, 1)
+    # A tie goes to the lower index; exactly 0 is not below 0 (the footprint touches).
+    ties = [row(5, 'OK', min_zone_clearance_m=0.0), row(2, 'OK', min_zone_clearance_m=0.0)]
+    assert least_clearance(ties) == LeastClearance('all', 0.0, 'tour_0002', 2, 0, 2)
+    assert [r.index for r in clearance_order(faulted)] == [1, 2, 0, 4]
+
+
+def test_the_least_clearance_per_axis_value_uses_the_groups_of_the_rates(faulted):
+    assert axis_clearances(faulted, 'seed') == [
+        LeastClearance('0', 0.12, 'tour_0002', 3, 0, 3),
+        LeastClearance('1', -0.05, 'tour_0001', 1, 1, 2)]
+    assert [c.label for c in axis_clearances(faulted, 'seed')] == [
+        label for label, _ in axis_rates(faulted, 'seed')]
+    assert axis_clearances(faulted, 'world') == []
+
+
+def test_an_axis_of_faults_is_also_summarised_per_kind(faulted):
+    # Any axis whose values are mappings with a kind gets an 'AXIS.kind' summary.
+    assert summary_axes(faulted, ['seed', 'fault']) == ['seed', 'fault', 'fault.kind']
+    assert summary_axes(faulted, ['seed']) == ['seed']
+    assert axis_clearances(faulted, 'fault.kind') == [
+        LeastClearance('wheel_slip', -0.05, 'tour_0001', 2, 1, 2),
+        LeastClearance('lidar_blinded', 0.12, 'tour_0002', 1, 0, 2),
+        LeastClearance('null', 0.50, 'tour_0004', 1, 0, 1)]
+    assert [(label, r.failures, r.n) for label, r in axis_rates(faulted, 'fault.kind')] == [
+        ('wheel_slip', 1, 2), ('lidar_blinded', 1, 2), ('null', 0, 1)]
+    # Each whole value is still a group of the axis itself.
+    assert [label for label, _ in axis_rates(faulted, 'fault')] == [
+        'kind=wheel_slip wheel=FL traction_factor=0.2',
+        'kind=wheel_slip wheel=RR traction_factor=0.1', 'kind=lidar_blinded onset_s=5',
+        'kind=lidar_blinded onset_s=8', 'null']
+    # A list of faults is summarised under its kinds joined.
+    listed = [row(0, 'OK', values={'fault': [SLIP_FL, {'kind': 'imu_silent'}]},
+                  min_zone_clearance_m=0.2)]
+    assert summary_axes(listed, ['fault']) == ['fault', 'fault.kind']
+    assert axis_clearances(listed, 'fault.kind') == [
+        LeastClearance('wheel_slip+imu_silent', 0.2, 'tour_0000', 1, 0, 1)]
+
+
+def test_the_least_clearance_round_trips_through_the_store(faulted, tmp_path):
+    path = tmp_path / 'results.sqlite'
+    with ResultsStore(path, 'faults', '{}') as store:
+        for each in faulted:
+            store.add(each)
+    stored = read_rows(path)
+    assert [r.min_zone_clearance_m for r in stored] == [0.30, -0.05, 0.12, None, 0.50]
+    assert least_clearance(stored) == least_clearance(faulted)
+
+
+def test_a_store_from_before_the_clearance_column_still_reads_and_resumes(tmp_path):
+    path = tmp_path / 'results.sqlite'
+    db = sqlite3.connect(str(path))
+    with db:   # the layout of the first stores (schema 1, 14 columns)
+        db.execute('CREATE TABLE sweep (key TEXT PRIMARY KEY, value TEXT)')
+        db.executemany('INSERT INTO sweep VALUES (?, ?)', [
+            ('schema', '1'), ('name', 'old'), ('fingerprint', 'fp'), ('created_at', '0')])
+        db.execute('CREATE TABLE variants (idx INTEGER PRIMARY KEY, name TEXT, '
+                   'values_json TEXT, status TEXT, verdict TEXT, expected TEXT, '
+                   'criteria_json TEXT, first_failure TEXT, sim_time_s REAL, '
+                   'wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT, finished_at REAL)')
+        db.execute('INSERT INTO variants VALUES (0, "old_0000", \'{"seed": 0}\', "OK", '
+                   '"pass", "pass", \'{"stay_in_zone": true}\', "", 10.0, 20.0, "", "", '
+                   '"", 1.0)')
+    db.close()
+    (old,) = read_rows(path)
+    assert (old.name, old.values, old.min_zone_clearance_m) == ('old_0000', {'seed': 0}, None)
+    with ResultsStore(path, 'old', 'fp') as store:   # resumed: the column is added
+        store.add(row(1, 'UNEXPECTED', {'stay_in_zone': F}, {'seed': 1},
+                      min_zone_clearance_m=-0.02))
+    assert [r.min_zone_clearance_m for r in read_rows(path)] == [None, -0.02]
