@@ -344,6 +344,14 @@ def test_an_unhealthy_localisation_stops_all_but_turning_until_healthy(
         robot.command = (0.0, 0.0, 0.5)
         settle(out, state, (0.0, 0.0, 0.5),
                'ALLOW turning on the spot (localisation unhealthy: NaN/inf in the covariance')
+        # A ramped spin (the navigator's recovery through the smoother) keeps a decaying
+        # translation while wz ramps up: only its rotation passes (it used to be stopped,
+        # and a robot whose amcl had spread never turned, so amcl never recovered).
+        robot.command = (0.02, -0.01, 0.3)
+        settle(out, state, (0.0, 0.0, 0.3),
+               'ALLOW turning on the spot (localisation unhealthy: NaN/inf in the covariance')
+        robot.command = (0.1, 0.0, 0.3)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP localisation unhealthy: NaN/inf in the covar')
         robot.command = (0.0, 0.0, 0.0)
         settle(out, state, (0.0, 0.0, 0.0),
                'ALLOW zero command (localisation unhealthy: NaN/inf in the covariance)')

@@ -98,6 +98,11 @@ MIN_TRAVEL_M = 1e-4
 #: 1 mm per cm (heading within acos(0.1) = 84 degrees of straight in). Parallel motion
 #: gains nothing (0, to rounding) and is stopped; any real inward heading passes.
 INWARD_MIN_SLOPE = 0.1
+#: A command that turns with a translation of at most this (m/s) counts as turning on the
+#: spot where only that is allowed (outside the zone, unhealthy localisation): its
+#: translation is dropped and the rotation passes alone. Ramped commands (the navigator's
+#: spin recovery, the velocity smoother) keep a decaying translation while wz ramps up.
+TURNING_LINEAR_TOLERANCE_M_S = 0.05
 #: Relative tolerance (times the largest entry, at least 1) of the covariance checks.
 COVARIANCE_TOLERANCE = 1e-9
 
@@ -140,6 +145,8 @@ class GuardResult:
     clearance_m: float = math.nan
     required_m: float = math.nan
     detail: str = ''
+    #: True when only the command's rotation may pass (its translation dropped).
+    rotation_only: bool = False
 
     def gap_m(self, footprint_radius_m: float) -> float:
         """Return the footprint's distance to the border now (m; < 0: it overlaps it)."""
@@ -266,6 +273,11 @@ def guard_margin(margin_m: float, covariance_factor: float, sigma_xy_m: float,
     if not math.isfinite(sigma_xy_m):
         return float(max_margin_m)
     return float(min(margin_m + covariance_factor * max(sigma_xy_m, 0.0), max_margin_m))
+
+
+def turning_on_the_spot(twist: Twist2D) -> bool:
+    """Tell whether a twist turns with at most TURNING_LINEAR_TOLERANCE_M_S of translation."""
+    return twist[2] != 0.0 and math.hypot(twist[0], twist[1]) <= TURNING_LINEAR_TOLERANCE_M_S
 
 
 @dataclass(frozen=True)
@@ -513,6 +525,9 @@ def guard_scale(zone: Zone, pose: Pose, twist: Twist2D, footprint_radius_m: floa
         # Rotation (or nothing): the footprint circle does not move.
         reason = REASON_TURNING_OUTSIDE if outside and twist[2] != 0.0 else REASON_CLEAR
         return GuardResult(1.0, reason, clearance, required)
+    if outside and turning_on_the_spot(twist):
+        return GuardResult(1.0, REASON_TURNING_OUTSIDE, clearance, required,
+                           rotation_only=True)
     path = _Path(zone, pose, twist, required, inward_cap)
     violation = path.first_violation(_path_end(twist[2], horizon))
     if violation is None:
@@ -662,6 +677,9 @@ class ZoneGuard:
         if localisation is not None:
             if twist[0] == 0.0 and twist[1] == 0.0:
                 return GuardResult(1.0, REASON_TURNING_UNHEALTHY, detail=localisation.text)
+            if turning_on_the_spot(twist):
+                return GuardResult(1.0, REASON_TURNING_UNHEALTHY, detail=localisation.text,
+                                   rotation_only=True)
             return GuardResult(0.0, REASON_LOCALISATION, detail=localisation.text)
         if covariance is not None:
             sigma_xy_m = self.sigma(pose, twist, covariance)

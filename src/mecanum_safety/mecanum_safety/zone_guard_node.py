@@ -109,6 +109,13 @@ def _components(msg: Twist) -> Tuple[float, ...]:
             msg.angular.x, msg.angular.y, msg.angular.z)
 
 
+def _rotation_only(msg: Twist) -> Twist:
+    """Return msg's rotation about z alone (its translation dropped)."""
+    out = Twist()
+    out.angular.z = float(msg.angular.z)
+    return out
+
+
 def _scaled(msg: Twist, scale: float) -> Twist:
     out = Twist()
     out.linear.x, out.linear.y, out.linear.z = (float(scale * v) for v in (
@@ -366,7 +373,7 @@ class ZoneGuardNode(Node):
         result = self.guard.step(pose, twist, self.sigma_used_m)
         self._last_result = result
         if all(v == 0.0 for v in values) or result.scale >= 1.0:
-            self.cmd_pub.publish(msg)
+            self.cmd_pub.publish(_rotation_only(msg) if result.rotation_only else msg)
             if result.reason in (guard.REASON_BACK_IN, guard.REASON_TURNING_OUTSIDE) \
                     and not all(v == 0.0 for v in values):
                 self._set_state(f'ALLOW {result.reason}', f'ALLOW {result.reason}',
@@ -402,7 +409,7 @@ class ZoneGuardNode(Node):
                             f'ALLOW zero command ({guard.REASON_LOCALISATION}: {problem.kind})',
                             DiagnosticStatus.WARN)
         elif result.scale >= 1.0:
-            self.cmd_pub.publish(msg)
+            self.cmd_pub.publish(_rotation_only(msg) if result.rotation_only else msg)
             self._set_state(f'ALLOW turning unhealthy: {problem.kind}',
                             f'ALLOW turning on the spot ({guard.REASON_LOCALISATION}: '
                             f'{problem.text})', DiagnosticStatus.WARN)

@@ -307,6 +307,15 @@ def test_an_unhealthy_localisation_stops_every_motion_but_turning_on_the_spot():
     # Turning on the spot does not move the footprint circle (and lets amcl update).
     result = zone_guard.step(AT, (0.0, 0.0, 1.0), localisation=problem)
     assert (result.scale, result.reason) == (1.0, guard.REASON_TURNING_UNHEALTHY)
+    assert not result.rotation_only
+    # A ramped spin keeps a decaying translation (0.03 m/s here, under the 0.05 m/s
+    # tolerance) while wz ramps up: its rotation alone passes.
+    result = zone_guard.step(AT, (0.03, 0.0, 0.4), localisation=problem)
+    assert (result.scale, result.reason, result.rotation_only) == (
+        1.0, guard.REASON_TURNING_UNHEALTHY, True)
+    # 0.06 m/s is driving, not turning on the spot: stopped; so is a translation alone.
+    assert zone_guard.step(AT, (0.06, 0.0, 0.4), localisation=problem).scale == 0.0
+    assert zone_guard.step(AT, (0.01, 0.0, 0.0), localisation=problem).scale == 0.0
     # Healthy again: the zone's rules only.
     assert zone_guard.step(AT, (0.3, 0.0, 0.0), localisation=None).scale == 1.0
     # Without a zone the localisation does not matter to the guard.
@@ -596,6 +605,9 @@ def test_from_outside_the_allowed_motion_only_gets_back_in(zone, seed, twist, ra
     if not moves:
         assert result.scale == 1.0     # on the spot (or nothing): the footprint stays
         return
+    if result.rotation_only:           # a turn with a leftover translation: rotation alone
+        assert guard.turning_on_the_spot(twist) and result.reason == guard.REASON_TURNING_OUTSIDE
+        return
     assert result.reason in (guard.REASON_BACK_IN, guard.REASON_OUTSIDE)
     assert (result.scale > 0.0) == (result.reason == guard.REASON_BACK_IN)
     if result.scale == 0.0:
@@ -611,3 +623,13 @@ def test_from_outside_the_allowed_motion_only_gets_back_in(zone, seed, twist, ra
     assert np.all(along >= np.minimum(radius + margin, best) - FALL_BACK_M)
     if math.hypot(*scaled[:2]) * horizon > 1e-6:
         assert along[-1] > start
+
+
+def test_outside_the_zone_a_ramped_turn_passes_as_rotation_alone():
+    """Outside the zone a turn with a small leftover translation turns, without moving."""
+    outside = (4.1, 2.0, 0.0)   # SQUARE is 0..4 m: the centre 0.1 m over the border
+    result = guard.guard_scale(SQUARE, outside, (0.02, 0.0, 0.5), RADIUS, 0.05, 1.0)
+    assert (result.scale, result.reason, result.rotation_only) == (
+        1.0, guard.REASON_TURNING_OUTSIDE, True)
+    result = guard.guard_scale(SQUARE, outside, (0.2, 0.0, 0.5), RADIUS, 0.05, 1.0)
+    assert result.scale == 0.0 and not result.rotation_only
