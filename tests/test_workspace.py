@@ -245,3 +245,44 @@ def test_the_zone_and_the_maps_are_read_without_navigation(package):
     assert not imports, imports
     manifest = parse_package(root / 'package.xml')
     assert 'mecanum_navigation' not in {d.name for d in manifest.exec_depends}
+
+
+@pytest.mark.parametrize('launch_file', LAUNCH_FILES, ids=lambda p: f'{p.parent.parent.name}/'
+                         f'{p.name}')
+def test_no_launch_parameter_is_shadowed_by_a_node_specific_file_entry(launch_file):
+    """
+    A launch file's {name, value} for a node must take effect.
+
+    rcl keeps parameter overrides in sections by node name, in the order each section
+    first appears on the command line, and a node takes '/**' and its own section in
+    that order. A launch {name, value} of a node with no namespace goes to '/**'
+    (launch_ros's temp file, or -p here): when a '/**' section came first (a file such
+    as motor_params.yaml) and a later file sets the same key under the node's own name,
+    the file's value silently wins (checked with rclpy: '-p a:=2' after '/**' then
+    'probe: {a: 1}' gives 1).
+    """
+    system = load_system(launch_file)
+    shadowed = []
+    for node in system.nodes:
+        sections = []         # section names in order of first appearance
+        node_keys = {}        # key -> file, set under the node's own name
+        for source in node.parameters:
+            if isinstance(source, Path):
+                document = yaml.safe_load(source.read_text()) or {}
+                for key, section in document.items():
+                    name = '/**' if key == '/**' else key.lstrip('/')
+                    if name not in sections:
+                        sections.append(name)
+                    if name == node.name and isinstance(section, dict):
+                        for parameter in section.get('ros__parameters') or {}:
+                            node_keys[parameter] = source
+            else:
+                if '/**' not in sections:
+                    sections.append('/**')
+                name = source[0]
+                wildcard_first = node.name in sections and sections.index('/**') < sections.index(
+                    node.name)
+                if wildcard_first and name.split('.')[0] in node_keys:
+                    shadowed.append(
+                        f'{node.label}: {name} loses to {node_keys[name.split(".")[0]]}')
+    assert not shadowed, shadowed
