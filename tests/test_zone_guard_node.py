@@ -93,6 +93,7 @@ class Robot(LoopThread):
             PoseWithCovarianceStamped, AMCL_POSE, latched)
         self.pose = None            # (x, y, yaw) of base_link in map; None: no /tf
         self.ekf = True             # publish odom -> base_link
+        self.map_to_odom = MAP_TO_ODOM  # what the localisation believes
         self.future_s = 0.0         # stamp every transform this far in the future (s)
         self.command = None
         self.last_ekf_stamp_s = math.nan
@@ -121,9 +122,9 @@ class Robot(LoopThread):
             if pose is not None:
                 now_ns = self.test_node.clock_ns + int(self.future_s * 1e9)
                 future_ns = now_ns + int(AMCL_TOLERANCE_S * 1e9)
-                transforms = [transform('map', 'odom', MAP_TO_ODOM, future_ns)]
+                transforms = [transform('map', 'odom', self.map_to_odom, future_ns)]
                 if self.ekf:
-                    odom_to_base = MAP_TO_ODOM.inverse().compose(PlanarTransform(*pose))
+                    odom_to_base = self.map_to_odom.inverse().compose(PlanarTransform(*pose))
                     transforms.append(transform('odom', 'base_link', odom_to_base, now_ns))
                     self.last_ekf_stamp_s = now_ns * 1e-9
                 self.tf_pub.publish(TFMessage(transforms=transforms))
@@ -481,3 +482,48 @@ def test_the_navigator_reads_unrestricted_as_no_zone():
     from mecanum_navigation.navigator.navigator_node import NavigatorNode
     assert NavigatorNode._load_zone('unrestricted') is None
     assert NavigatorNode._load_zone('') is None
+
+
+def test_a_jump_of_the_localisation_stops_until_the_pose_is_set(start_system, test_node,
+                                                                 tmp_path):
+    """
+    A respawned amcl starting from its initial pose makes map -> odom jump: latched.
+
+    Found by the fault sweep (amcl killed near the border): the new amcl was sure of
+    the start pose, 1.2 m from the robot, and the zone guard let the robot out of the
+    zone. The guard cannot tell which estimate is right: it stops all but turning on
+    the spot until the pose is set on /initialpose.
+    """
+    system, robot, out, state, diagnostics = start_guard(start_system, test_node, tmp_path)
+    initial_pose = test_node.node.create_publisher(PoseWithCovarianceStamped, 'initialpose',
+                                                   10)
+    try:
+        robot.publish_sigma(0.03)
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+        # The localisation changes its mind by 1.2 m (the robot itself did not move),
+        # with a healthy covariance: the covariance check alone would let it drive.
+        robot.map_to_odom = PlanarTransform(MAP_TO_ODOM.x + 1.2, MAP_TO_ODOM.y,
+                                            MAP_TO_ODOM.yaw)
+        robot.pose = (3.2, 2.0, 0.0)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP localisation unhealthy: localisation '
+               'jumped 1.20 m')
+        system.wait_for_line(r'\[ERROR\].*localisation jumped 1.20 m, 0 deg at once')
+        wait_for_diagnostics(diagnostics, DiagnosticStatus.ERROR, 'STOP localisation')
+        robot.command = (0.0, 0.0, 0.5)     # turning on the spot still passes
+        settle(out, state, (0.0, 0.0, 0.5), 'ALLOW turning on the spot (localisation '
+               'unhealthy: localisation jumped')
+        robot.publish_sigma(0.03)            # a healthy covariance does not clear it
+        robot.command = (0.3, 0.0, 0.0)
+        settle(out, state, (0.0, 0.0, 0.0), 'STOP localisation unhealthy: localisation '
+               'jumped')
+        # The operator sets the pose: cleared; commands pass.
+        deadline = time.monotonic() + 20.0
+        while initial_pose.get_subscription_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        initial_pose.publish(PoseWithCovarianceStamped())
+        system.wait_for_line(r'pose set on /initialpose: the localisation jump is cleared')
+        settle(out, state, (0.3, 0.0, 0.0), 'ALLOW')
+    finally:
+        robot.stop()
+    assert 'Traceback' not in system.output()

@@ -122,6 +122,7 @@ KIND_COVARIANCE = 'NaN/inf in the covariance'
 KIND_ASYMMETRIC = 'covariance not symmetric'
 KIND_NOT_PSD = 'covariance not positive semi-definite'
 KIND_SIGMA = 'position sigma too large'
+KIND_JUMP = 'localisation jumped'
 
 
 @dataclass(frozen=True)
@@ -286,6 +287,72 @@ class LocalisationProblem:
 
     kind: str
     text: str
+
+
+class LocalisationJumps:
+    """
+    Latch a jump of the localisation that nobody asked for (map -> odom, m and rad).
+
+    map -> odom changes slowly in normal operation: amcl's and SLAM's corrections of the
+    odometry's drift, a few cm per update. A jump means the localisation changed its mind
+    at once: a restarted amcl starting again from its initial pose, a relocalisation after
+    a kidnap, a wrong loop closure. Which of the two estimates is right cannot be told
+    here, so a jump of more than ``max_jump_m`` (+ 3 position sigma of the estimate
+    before it) or ``max_jump_rad`` (+ 3 yaw sigma) is latched as a localisation problem
+    until the operator sets the pose (``initial_pose_set``: /initialpose, RViz's 2D Pose
+    Estimate); the jump that follows that, within ``grace_s``, is expected.
+    Changes below the thresholds move the reference along (slow corrections add up
+    without ever counting as a jump).
+    """
+
+    def __init__(self, max_jump_m: float = 0.5, max_jump_rad: float = 0.5,
+                 grace_s: float = 5.0):
+        """Check and keep the thresholds (m, rad) and the grace after /initialpose (s)."""
+        for name, value in (('max_localisation_jump_m', max_jump_m),
+                            ('max_localisation_jump_rad', max_jump_rad),
+                            ('initial_pose_grace_s', grace_s)):
+            _check_number(name, value)
+            if value <= 0.0:
+                raise ValueError(f'{name} must be > 0, got {value!r}')
+        self.max_jump_m = float(max_jump_m)
+        self.max_jump_rad = float(max_jump_rad)
+        self.grace_s = float(grace_s)
+        self.reference: Optional[Tuple[float, float, float]] = None
+        self.grace_until_s = -math.inf
+        self.latched: Optional[LocalisationProblem] = None
+
+    def initial_pose_set(self, now_s: float) -> None:
+        """Take the operator's pose: clear a latched jump, expect one for grace_s."""
+        self.latched = None
+        self.reference = None
+        self.grace_until_s = now_s + self.grace_s
+
+    def update(self, now_s: float, map_to_odom: Tuple[float, float, float],
+               sigma_xy_m: float = 0.0, sigma_yaw_rad: float = 0.0
+               ) -> Optional[LocalisationProblem]:
+        """Return the latched jump (or None) after one map -> odom (x, y, yaw) sample."""
+        if self.latched is not None:
+            return self.latched
+        sample = tuple(float(v) for v in map_to_odom)
+        if self.reference is None or now_s < self.grace_until_s or not all(
+                math.isfinite(v) for v in sample):
+            if all(math.isfinite(v) for v in sample):
+                self.reference = sample
+            return None
+        distance = math.hypot(sample[0] - self.reference[0], sample[1] - self.reference[1])
+        turn = abs(wrap_angle(sample[2] - self.reference[2]))
+        sigma_xy = sigma_xy_m if math.isfinite(sigma_xy_m) else 0.0
+        sigma_yaw = sigma_yaw_rad if math.isfinite(sigma_yaw_rad) else 0.0
+        limit_m = self.max_jump_m + 3.0 * max(sigma_xy, 0.0)
+        limit_rad = self.max_jump_rad + 3.0 * max(sigma_yaw, 0.0)
+        if distance > limit_m or turn > limit_rad:
+            self.latched = LocalisationProblem(KIND_JUMP, (
+                f'{KIND_JUMP} {distance:.2f} m, {math.degrees(turn):.0f} deg at once (map -> '
+                f'odom; more than {limit_m:.2f} m or {math.degrees(limit_rad):.0f} deg) and '
+                'nobody set the pose: set it on /initialpose (RViz 2D Pose Estimate)'))
+            return self.latched
+        self.reference = sample
+        return None
 
 
 def localisation_problem(position: Sequence[float], orientation: Sequence[float],

@@ -145,6 +145,11 @@ class ZoneGuardNode(Node):
             ('horizon_s', 1.0), ('margin_m', 0.05), ('covariance_factor', 2.0),
             ('max_margin_m', 0.5), ('max_position_sigma_m', 0.25))}
         self.require_zone = declare_typed(self, 'require_zone', False)
+        self.odom_frame = declare_typed(self, 'odom_frame', 'odom').strip('/')
+        jumps = {name: declare_typed(self, name, default) for name, default in (
+            ('max_localisation_jump_m', 0.5), ('max_localisation_jump_rad', 0.5),
+            ('initial_pose_grace_s', 5.0))}
+        initial_pose_topic = declare_typed(self, 'initial_pose_topic', 'initialpose')
         self.pose_timeout_s = declare_typed(self, 'pose_timeout_s', 0.5)
         if not (math.isfinite(self.pose_timeout_s) and self.pose_timeout_s > 0.0):
             raise ValueError(f'parameter pose_timeout_s must be a finite number > 0, got '
@@ -167,6 +172,12 @@ class ZoneGuardNode(Node):
                 raise ValueError(f'parameter zone_file: {error}') from None
         try:
             self.guard = guard.ZoneGuard(zone, config.footprint_radius_m, **numbers)
+        except ValueError as error:
+            raise ValueError(f'parameter {error}') from None
+        try:
+            self.jumps = guard.LocalisationJumps(jumps['max_localisation_jump_m'],
+                                                 jumps['max_localisation_jump_rad'],
+                                                 jumps['initial_pose_grace_s'])
         except ValueError as error:
             raise ValueError(f'parameter {error}') from None
         self.frames = TransformBuffer()
@@ -206,6 +217,9 @@ class ZoneGuardNode(Node):
                                          latched, event_callbacks=quiet),
                 self.create_subscription(PoseWithCovarianceStamped, covariance_topic,
                                          lambda msg: self.on_pose_covariance(msg, 1), 10)]
+        self.initial_pose_sub = (self.create_subscription(
+            PoseWithCovarianceStamped, initial_pose_topic, self.on_initial_pose, 10)
+            if initial_pose_topic else None)
         self.cmd_sub = self.create_subscription(Twist, cmd_in, self.on_command, 10)
         self.diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
         if self.zone_missing:
@@ -327,6 +341,33 @@ class ZoneGuardNode(Node):
                 f'localisation healthy again ({topic}): position sigma {sigma:.3f} m; '
                 'commands pass')
 
+    def on_initial_pose(self, msg: PoseWithCovarianceStamped) -> None:
+        """Take the operator's pose: clear a latched jump and expect the next one."""
+        latched = self.jumps.latched is not None
+        self.jumps.initial_pose_set(self._now_s())
+        self.get_logger().info(
+            f'pose set on {self.initial_pose_sub.topic_name}: '
+            + ('the localisation jump is cleared; ' if latched else '')
+            + f'a jump of the localisation within {self.jumps.grace_s:g} s is expected')
+
+    def localisation_jump(self) -> Optional[guard.LocalisationProblem]:
+        """Feed map -> odom to the jump detector; return its latched problem, if any."""
+        was = self.jumps.latched
+        try:
+            map_to_odom = self.frames.lookup(self.global_frame, self.odom_frame)
+        except TransformError:
+            return was     # no odom frame in this chain (or not yet): nothing to compare
+        sigma_yaw = (math.sqrt(max(self.covariance[35], 0.0))
+                     if self.covariance is not None and math.isfinite(self.covariance[35])
+                     else 0.0)
+        problem = self.jumps.update(self._now_s(), (map_to_odom.x, map_to_odom.y,
+                                                    map_to_odom.yaw), self.sigma_xy_m,
+                                    sigma_yaw)
+        if problem is not None and was is None:
+            self.get_logger().error(f'{problem.text}; stopping every motion but turning on '
+                                    'the spot until then')
+        return problem
+
     def on_command(self, msg: Twist) -> None:
         """Publish the allowed twist for one command and the state."""
         self.commands += 1
@@ -362,7 +403,7 @@ class ZoneGuardNode(Node):
             self._set_state(f'STOP {reason}', f'STOP {reason}', DiagnosticStatus.ERROR)
             return
         twist = (msg.linear.x, msg.linear.y, msg.angular.z)
-        problem = self.localisation
+        problem = self.localisation_jump() or self.localisation
         if problem is not None:
             self._command_while_unhealthy(msg, values, pose, twist, problem)
             return

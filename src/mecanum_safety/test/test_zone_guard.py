@@ -633,3 +633,40 @@ def test_outside_the_zone_a_ramped_turn_passes_as_rotation_alone():
         1.0, guard.REASON_TURNING_OUTSIDE, True)
     result = guard.guard_scale(SQUARE, outside, (0.2, 0.0, 0.5), RADIUS, 0.05, 1.0)
     assert result.scale == 0.0 and not result.rotation_only
+
+
+def test_a_jump_of_the_localisation_is_latched_until_the_pose_is_set():
+    jumps = guard.LocalisationJumps(max_jump_m=0.5, max_jump_rad=0.5, grace_s=5.0)
+    assert jumps.update(0.0, (0.5, -0.3, 0.4)) is None            # the first: reference
+    # amcl's corrections, a few cm each, add up without ever counting as a jump.
+    for step in range(1, 30):
+        assert jumps.update(step * 0.1, (0.5 + 0.03 * step, -0.3, 0.4)) is None
+    # A restarted amcl: map -> odom 1.2 m away at once (sigma 0.05: limit 0.65 m).
+    problem = jumps.update(3.0, (0.5 + 0.87 + 1.2, -0.3, 0.4), sigma_xy_m=0.05)
+    assert problem.kind == guard.KIND_JUMP
+    assert problem.text.startswith('localisation jumped 1.20 m, 0 deg at once (map -> odom; '
+                                   'more than 0.65 m or 29 deg)')
+    # Latched, even when map -> odom comes back.
+    assert jumps.update(3.1, (1.37, -0.3, 0.4)) is problem
+    # The operator sets the pose: cleared, and the jump that follows is expected.
+    jumps.initial_pose_set(4.0)
+    assert jumps.update(4.5, (-2.0, 1.0, 2.0)) is None
+    assert jumps.update(9.5, (-2.0, 1.0, 2.0)) is None               # grace over
+    assert jumps.update(9.6, (-2.0, 1.0, 2.0 + 0.6)).kind == guard.KIND_JUMP   # 0.6 rad
+
+
+def test_a_jump_within_three_sigma_of_an_unsure_estimate_is_convergence():
+    jumps = guard.LocalisationJumps()
+    jumps.update(0.0, (0.0, 0.0, 0.0))
+    # amcl started with a 0.5 m std converging: 0.9 m < 0.5 + 3 x 0.36.
+    assert jumps.update(0.1, (0.9, 0.0, 0.0), sigma_xy_m=0.36) is None
+    assert jumps.update(0.2, (0.9, 0.0, 0.3), sigma_yaw_rad=0.1) is None
+    assert jumps.update(0.3, (0.9, 0.0, 1.2), sigma_yaw_rad=0.1).kind == guard.KIND_JUMP
+
+
+@pytest.mark.parametrize('arguments, name', [((0.0, 0.5, 5.0), 'max_localisation_jump_m'),
+                                             ((0.5, math.nan, 5.0), 'max_localisation_jump_rad'),
+                                             ((0.5, 0.5, -1.0), 'initial_pose_grace_s')])
+def test_bad_jump_thresholds_are_refused_by_name(arguments, name):
+    with pytest.raises(ValueError, match=name):
+        guard.LocalisationJumps(*arguments)
