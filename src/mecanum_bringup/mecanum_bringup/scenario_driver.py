@@ -135,6 +135,7 @@ class ScenarioDriver:
             durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._estop_release = node.create_client(Trigger, ESTOP_RELEASE_SERVICE)
         self._release_answers: List[Any] = []
+        self._release_wanted = False     # until motor_controller accepted a reset
         self._fault_reports: List[Dict[str, Any]] = []
         node.create_subscription(String, FAULT_REPORT_TOPIC, self._on_fault_report, QoSProfile(
             depth=FAULT_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
@@ -467,11 +468,27 @@ class ScenarioDriver:
         Press (True) or release (False) the operator's e-stop.
 
         Release publishes false and asks motor_controller to reset its latched stop (the
-        answer is not awaited: the call goes out now, at this simulated time).
+        answer is not awaited: the call goes out now, at this simulated time). The call
+        can overtake the false, which motor_controller then refuses ('emergency_stop is
+        still true'): keep_releasing asks again, as an operator presses reset again.
         """
         self._estop_pub.publish(Bool(data=bool(engaged)))
+        self._release_wanted = not engaged
         if not engaged:
             self._release_answers.append(self._estop_release.call_async(Trigger.Request()))
+
+    def keep_releasing(self) -> None:
+        """Ask for the e-stop's reset again if the last call was refused; call every poll."""
+        if not self._release_wanted or not self._release_answers:
+            return
+        last = self._release_answers[-1]
+        if not last.done():
+            return
+        answer = last.result()
+        if answer is not None and answer.success:
+            self._release_wanted = False
+            return
+        self._release_answers.append(self._estop_release.call_async(Trigger.Request()))
 
     def close(self) -> None:
         """Stop spinning and shut the node's context down."""

@@ -447,6 +447,7 @@ class FaultInjector:
 
     def due(self, now_s: float) -> None:
         """Apply the runner's actions whose simulated time has come, in time order."""
+        self.driver.keep_releasing()
         while self._pending and self._pending[0][0] <= now_s:
             _, _, index, action = self._pending.pop(0)
             if action == 'begin':

@@ -119,6 +119,9 @@ class FakeDriver:
     def set_estop(self, engaged):
         self.sent.append(('estop', engaged))
 
+    def keep_releasing(self):
+        pass
+
 
 @pytest.fixture
 def injector():
@@ -298,6 +301,56 @@ def test_the_driver_sends_faults_and_the_estop_to_late_joiners(monkeypatch):
             while not driver.fault_reports() and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
             assert driver.fault_reports() == [report]
+        finally:
+            driver.close()
+            executor.shutdown()
+            rclpy.try_shutdown(context=context)
+
+
+def test_the_driver_asks_for_the_reset_again_when_it_overtook_the_release(monkeypatch):
+    """
+    The reset call can reach motor_controller before the false: asked again until done.
+
+    Found by the fault sweep: motor_controller refused the reset ('emergency_stop is
+    still true'), the stop stayed latched and the rest of the run's goals timed out.
+    """
+    import rclpy
+    from std_srvs.srv import Trigger
+    from mecanum_bringup.isolation import lease_domain_id
+    from mecanum_bringup.scenario_driver import ESTOP_RELEASE_SERVICE, ScenarioDriver
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    with lease_domain_id() as lease:
+        context = rclpy.Context()
+        rclpy.init(context=context, domain_id=lease.domain_id)
+        node = rclpy.create_node('motor_controller_stand_in', context=context)
+        calls = []
+
+        def release(request, response):
+            calls.append(time.monotonic())
+            response.success = len(calls) >= 2   # the first overtook the false
+            response.message = 'released' if response.success else 'still true'
+            return response
+
+        node.create_service(Trigger, ESTOP_RELEASE_SERVICE, release)
+        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        driver = ScenarioDriver(lease.domain_id)
+        try:
+            deadline = time.monotonic() + 30.0
+            while not driver._estop_release.service_is_ready() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.1)
+            driver.set_estop(True)
+            driver.set_estop(False)
+            while len(calls) < 2 and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.1)
+                driver.keep_releasing()
+            assert len(calls) == 2
+            # Accepted: no more calls however often it is asked.
+            settle = time.monotonic() + 1.0
+            while time.monotonic() < settle:
+                executor.spin_once(timeout_sec=0.05)
+                driver.keep_releasing()
+            assert len(calls) == 2
         finally:
             driver.close()
             executor.shutdown()
