@@ -284,19 +284,26 @@ def test_nan_and_absurd_commands_are_rejected_and_stop_the_robot(emulated):
     system.wait_for_line(r'Rejected cmd_vel, stopping: .*is absurd', timeout=5.0)
 
 
-def test_a_blocked_wheel_is_detected_and_stopped_while_the_others_run(start_emulated):
-    # The emulated FL wheel cannot turn (stalled motor or unplugged encoder).
+def test_a_blocked_wheel_is_detected_and_stops_every_wheel(start_emulated):
+    # The emulated FL wheel cannot turn (stalled motor or unplugged encoder). On three
+    # wheels a mecanum robot goes along another path than the chain judged (the fault
+    # sweep's stuck encoder: localisation 3.5 m off), so every wheel stops.
     system, test_node, _ = start_emulated('--block-wheel FL')
     efforts = test_node.record(Float32MultiArray, 'motor_efforts')
     driver = Driver(test_node)
     driver.drive(vx=0.3)
     system.wait_for_line(r'\[velocity_controller\].*Wheel FL stalled or its encoder is '
                          'disconnected', timeout=10.0)
-    # FL gets no effort any more; the other wheels keep being driven.
-    time.sleep(0.5)
-    recent = efforts.since(time.monotonic() - 0.4)
-    assert recent and all(m.data[0] == 0.0 for m in recent)
-    assert all(min(m.data[1:]) > 0.1 for m in recent)
+    system.wait_for_line(r'\[velocity_controller\].*Every wheel stopped while FL is faulted',
+                         timeout=5.0)
+    # No wheel gets an effort any more while FL is faulted.
+    efforts.wait_for_new(lambda m: all(v == 0.0 for v in m.data), timeout=5.0)
+    start = time.monotonic()
+    deadline = start + 5.0
+    while len(efforts.since(start)) < 10 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    recent = efforts.since(start)
+    assert len(recent) >= 10 and all(all(v == 0.0 for v in m.data) for m in recent)
     # A zero target releases the wheel (it is retried on the next command).
     driver.drive()
     system.wait_for_line(r'\[velocity_controller\].*Wheel FL released', timeout=5.0)

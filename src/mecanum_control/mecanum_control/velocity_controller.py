@@ -85,6 +85,7 @@ class VelocityController(Node):
                                               declare('measurement_timeout_s', 0.25).value)
         self.pids = [PidController(gains) for _ in WHEELS]
         self.stall_detectors = [StallDetector(stall) for _ in WHEELS]
+        self._all_stopped = False       # every wheel held at zero for a faulted one
         self.targets = [0.0] * 4
         self.target_time: Optional[Time] = None
         self.measured = [0.0] * 4
@@ -256,6 +257,19 @@ class VelocityController(Node):
                 self._reported.discard(WHEELS[i])
                 self.get_logger().info(f'Wheel {WHEELS[i]} released after a zero target')
             efforts.append(effort)
+        faulted = [w for w, stall in zip(WHEELS, self.stall_detectors) if stall.stalled]
+        if faulted:
+            # A mecanum robot with a wheel off goes along another path than the one the
+            # command chain judged (and its odometry is wrong): stop every wheel.
+            if not self._all_stopped:
+                self.get_logger().error(
+                    f'Every wheel stopped while {", ".join(faulted)} is faulted: on three '
+                    'wheels a mecanum robot does not go where it is told')
+            self._all_stopped = True
+            for pid in self.pids:
+                pid.reset()
+            return [0.0] * len(efforts)
+        self._all_stopped = False
         return efforts
 
     def _set_state(self, state: str) -> None:
