@@ -37,8 +37,10 @@ names the file and the entry, never silently ignored)::
         env: [{name: FOO, value: bar}]    # optional
 
 Substitutions: ``$(var NAME)``, ``$(find-pkg-share PKG)``,
-``$(env NAME [DEFAULT])``, ``$(dirname)`` (the launch file's folder) and
-``$(command 'CMD ARGS' [ON_STDERR])``: CMD's standard output. As in ROS 2 launch,
+``$(env NAME [DEFAULT])``, ``$(dirname)`` (the launch file's folder), ``$(anon NAME)``
+(launch's AnonName: ``NAME_<host>_<pid>_<random>``, with '.', '-' and ':' made '_'; the
+same NAME gives the same text throughout one launch, e.g. a file name of this launch
+only) and ``$(command 'CMD ARGS' [ON_STDERR])``: CMD's standard output. As in ROS 2 launch,
 the command is split like a shell would (shlex) but run without one, in the
 launch environment; it fails on a non-zero exit and, with ON_STDERR ``fail`` (the
 default), on any standard error output (``ignore``: drop it, ``warn``: print it,
@@ -53,7 +55,9 @@ from dataclasses import dataclass, field
 import os
 from pathlib import Path
 import re
+import secrets
 import shlex
+import socket
 import subprocess
 import sys
 from typing import Callable, Dict, List, Optional, Tuple, Union
@@ -165,6 +169,17 @@ def parse_bool(text: object, where: str) -> bool:
     if lowered in ('false', '0', 'no'):
         return False
     raise SystemDescriptionError(f'{where}: expected true or false, got {text!r}')
+
+
+def anon_name(name: str) -> str:
+    """
+    Return a name unique to this call, as launch's AnonName.compute_name makes it.
+
+    ``NAME_<host name>_<pid>_<random>``, with '.', '-' and ':' replaced by '_'. The
+    random part comes from the system's generator (a seeded ``random`` cannot repeat it).
+    """
+    text = f'{name}_{socket.gethostname()}_{os.getpid()}_{secrets.randbelow(sys.maxsize)}'
+    return text.replace('.', '_').replace('-', '_').replace(':', '_')
 
 
 def parse_launch_arguments(argv: List[str]) -> Dict[str, str]:
@@ -292,6 +307,9 @@ class _Resolver:
         self._set_env: Dict[str, str] = {}
         # Files being read, outermost first, to catch an include of an including file.
         self._include_stack: List[Path] = []
+        # $(anon NAME) values, one per NAME for the whole launch (launch keeps them in
+        # its launch configurations, which includes share).
+        self._anon_names: Dict[str, str] = {}
         self.system = System()
 
     def substitute(self, value: object, scope: Dict[str, str], where: str,
@@ -332,6 +350,10 @@ class _Resolver:
                 f'{where}: environment variable {rest[0]} is not set and has no default')
         if kind == 'dirname' and not rest:
             return str(launch_dir)
+        if kind == 'anon' and len(rest) == 1:
+            if rest[0] not in self._anon_names:
+                self._anon_names[rest[0]] = anon_name(rest[0])
+            return self._anon_names[rest[0]]
         if kind == 'command' and len(rest) in (1, 2):
             return self._run_command(rest[0], rest[1] if len(rest) == 2 else 'fail', where)
         raise SystemDescriptionError(

@@ -1,6 +1,8 @@
 """Tests of the launch YAML reader, on real files in a temporary folder."""
 
+import os
 from pathlib import Path
+import re
 import sys
 import textwrap
 
@@ -141,6 +143,8 @@ def test_include_passes_arguments_and_scopes_set_env(packages):
     ('launch:\n- arg: {name: a, default: x, choices: [y, z]}\n- node: {pkg: p, exec: x}',
      'not one of'),
     ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(unknown thing)}', 'unsupported'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(anon)}', 'unsupported'),
+    ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(anon a b)}', 'unsupported'),
     ('launch:\n- node: {pkg: pkg_a, exec: x, name: $(env NOT_SET_ANYWHERE)}', 'not set'),
     ('launch: [', 'not valid YAML'),
     ('launch: []', 'has no nodes'),
@@ -227,6 +231,35 @@ def test_if_and_unless_choose_entries(tmp_path):
     assert system.nodes[-1].env['MODE'] == 'mapping'
     with pytest.raises(SystemDescriptionError, match='"if": expected true or false'):
         load_system(path, {'slam': 'maybe'}, lambda name: '', environ={})
+
+
+def test_anon_is_one_name_per_launch_and_name(tmp_path):
+    """
+    $(anon NAME) is launch's AnonName: NAME_<host>_<pid>_<random>, '.', '-', ':' as '_'.
+
+    The same NAME gives the same name everywhere in one launch (here in an argument's
+    default, a node and an included file), another NAME another one, the next launch
+    new ones.
+    """
+    write(tmp_path / 'inner.launch.yaml', """
+        launch:
+        - node: {pkg: pkg_a, exec: inner, args: $(anon amcl)}
+        """)
+    path = write(tmp_path / 'top.launch.yaml', """
+        launch:
+        - arg: {name: state_file, default: /tmp/amcl_pose_$(anon amcl).yaml}
+        - node: {pkg: pkg_a, exec: a, args: $(var state_file) $(anon amcl) $(anon my-node.x)}
+        - include: {file: $(dirname)/inner.launch.yaml}
+        """)
+    system = load_system(path, {}, lambda name: '', environ={})
+    state_file, amcl, other = system.nodes[0].arguments
+    assert system.nodes[1].arguments == [amcl]
+    assert state_file == f'/tmp/amcl_pose_{amcl}.yaml'
+    assert re.fullmatch(rf'amcl_\w+_{os.getpid()}_\d+', amcl), amcl
+    assert re.fullmatch(rf'my_node_x_\w+_{os.getpid()}_\d+', other), other
+    assert other.rsplit('_', 1)[1] != amcl.rsplit('_', 1)[1]
+    again = load_system(path, {}, lambda name: '', environ={})
+    assert again.nodes[0].arguments[1] != amcl
 
 
 @pytest.mark.parametrize('argv, expected', [

@@ -33,11 +33,27 @@ recovery_alpha_slow, resample_interval, robot_model_type (nav2_amcl::OmniMotionM
 only: this robot is omnidirectional), set_initial_pose, initial_pose.{x, y, z, yaw},
 tf_broadcast, transform_tolerance, update_min_a, update_min_d, z_hit, z_rand, z_max and
 z_short (accepted, unused by the likelihood field, as in Nav2), sigma_hit, scan_topic,
-map_topic. Other nav2_amcl parameters (beam skipping, save_pose_rate, ...) are not
-supported and are ignored. A bad value stops the node with one FATAL line naming it.
+map_topic. Other nav2_amcl parameters (save_pose_rate, ...) are not supported and are
+ignored. A bad value stops the node with one FATAL line naming it.
+
+Resuming after a respawn (not nav2's; ROS 1 amcl's save_pose_rate idea, done with map ->
+odom): with ``pose_state_file`` (an absolute path; '' = off, the default) amcl saves its
+latest filter update (global -> odom, the odometry pose and the estimate's covariance,
+:mod:`mecanum_navigation.amcl.pose_state`) there, atomically, at most every
+``save_pose_period_s`` (ROS time, 2 s; at once after a new initial pose) and when it
+stops cleanly. An amcl starting with a valid file there resumes from it instead of
+``set_initial_pose``: at its first scan it starts the filter at the saved map -> odom
+composed with the odometry of that scan, the saved covariance widened by the motion
+model's noise for the odometry change since the save (``Resuming from FILE (saved at T
+s): (x, y, yaw) ...``). A pose on /initialpose or a global localisation before that
+first scan wins. An unreadable or invalid file is an ERROR line, then
+``set_initial_pose`` as usual. The launch files give a path unique to the launch, so a
+file never outlives the run it belongs to.
 """
 
 import math
+import os
+from pathlib import Path
 import sys
 import time
 from typing import Optional
@@ -53,6 +69,8 @@ from mecanum_map_server.grid_messages import occupancy_map
 from mecanum_map_server.map_io import OccupancyMap
 from mecanum_navigation.amcl.particle_filter import (
     AmclConfig, LikelihoodField, ParticleFilter, ScanData)
+from mecanum_navigation.amcl.pose_state import (
+    load, PoseState, PoseStateError, resume, save, save_due, state_from_estimate)
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 from rclpy.node import Node
@@ -112,18 +130,33 @@ class AmclNode(Node):
                              f'got {spread}')
         scan_topic = self._declare('scan_topic', 'scan')
         map_topic = self._declare('map_topic', 'map')
+        self.pose_state_file = self._declare('pose_state_file', '')
+        if self.pose_state_file:
+            _check_pose_state_file(self.pose_state_file)
+        self.save_pose_period_s = self._declare('save_pose_period_s', 2.0)
+        if not (math.isfinite(self.save_pose_period_s) and self.save_pose_period_s > 0.0):
+            raise ValueError('parameter save_pose_period_s must be finite and > 0, got '
+                             f'{self.save_pose_period_s}')
         self.config = AmclConfig(**values)
         self.filter = ParticleFilter(self.config)
+        # The state of this launch's previous amcl, resumed from at the first scan.
+        self.resume_state = self._load_pose_state(set_initial_pose)
         if set_initial_pose:
+            # Also when resuming: it checks the parameters and is the fall-back.
             try:
                 self.filter.initialize((initial[0], initial[1], initial[3]),
                                        np.diag([spread[0] ** 2, spread[0] ** 2,
                                                 spread[1] ** 2]))
             except ValueError as error:
                 raise ValueError(f'parameter initial_pose: {error}') from None
-            self.get_logger().info(
-                f'Setting pose (set_initial_pose): ({initial[0]:.3f}, {initial[1]:.3f}, '
-                f'{initial[3]:.3f}) in the map')
+            if self.resume_state is None:
+                self._log_initial_pose(initial)
+        self._initial_pose = initial if set_initial_pose else None
+        # The latest filter update as a PoseState, the one last written, and whether the
+        # next one is written whatever the period (the first, the first after a new pose).
+        self._pose_state: Optional[PoseState] = None
+        self._saved_state: Optional[PoseState] = None
+        self._save_next = True
         _warm_up(self.config)
 
         self.tf_buffer = TransformBuffer()
@@ -176,6 +209,85 @@ class AmclNode(Node):
         if self._warnings.ready(key):
             self.get_logger().warning(text)
 
+    def _log_initial_pose(self, initial) -> None:
+        self.get_logger().info(
+            f'Setting pose (set_initial_pose): ({initial[0]:.3f}, {initial[1]:.3f}, '
+            f'{initial[3]:.3f}) in the map')
+
+    # --- resuming after a respawn -----------------------------------------------------
+
+    def _load_pose_state(self, set_initial_pose: bool) -> Optional[PoseState]:
+        """Return the valid state in pose_state_file, else None (an error logged)."""
+        if not self.pose_state_file:
+            return None
+        instead = 'set_initial_pose' if set_initial_pose else \
+            'no pose (waiting for /initialpose)'
+        try:
+            state = load(self.pose_state_file)
+            if state is None:
+                return None
+            state.check_frames(self.global_frame, self.odom_frame)
+        except PoseStateError as error:
+            self.get_logger().error(
+                f'cannot resume from {self.pose_state_file}: {error}; starting from '
+                f'{instead} instead')
+            return None
+        self.get_logger().info(
+            f'Found the pose state of an amcl of this launch in {self.pose_state_file} '
+            f'(saved at {state.stamp_s:.3f} s): resuming from it at the first scan'
+            + (' (set_initial_pose ignored)' if set_initial_pose else ''))
+        return state
+
+    def _resume(self, odom_pose) -> None:
+        """Start the filter from resume_state at the current odometry (the first scan's)."""
+        state, self.resume_state = self.resume_state, None
+        try:
+            resumed = resume(state, odom_pose, self.config)
+            self.filter.initialize(resumed.pose, resumed.covariance)
+        except ValueError as error:
+            self.get_logger().error(f'cannot resume from {self.pose_state_file}: {error}')
+            if self._initial_pose is not None:
+                self._log_initial_pose(self._initial_pose)
+            return
+        x, y, yaw = resumed.pose
+        deviations = ', '.join(f'{math.sqrt(v):.3f}' for v in np.diag(resumed.covariance))
+        self.get_logger().info(
+            f'Resuming from {self.pose_state_file} (saved at {state.stamp_s:.3f} s): '
+            f'({x:.3f}, {y:.3f}, {yaw:.3f}) in {self.global_frame}, standard deviations '
+            f'{deviations} (odometry since: {resumed.travelled_m:.2f} m, '
+            f'{resumed.turned_rad:.2f} rad)')
+
+    def _restarted(self) -> None:
+        """Forget the resume and the old state: the filter was set anew."""
+        self.resume_state = None
+        self._pose_state = None
+        self._save_next = True
+
+    def _keep_pose_state(self, estimate, stamp_s: float) -> None:
+        """Remember the update's state; write it when save_pose_period_s has passed."""
+        previous = self._saved_state
+        try:
+            self._pose_state = state_from_estimate(
+                stamp_s, self.global_frame, self.odom_frame, estimate.pose,
+                estimate.covariance, self.filter.odom_reference)
+        except PoseStateError as error:
+            self._warn('pose state', f'not saving the pose state: {error}')
+            return
+        if self._save_next or save_due(None if previous is None else previous.stamp_s,
+                                       stamp_s, self.save_pose_period_s):
+            self._write_pose_state()
+
+    def _write_pose_state(self) -> None:
+        """Write the latest state to pose_state_file (a failure is a warning)."""
+        state = self._pose_state
+        self._saved_state = state
+        self._save_next = False
+        try:
+            save(self.pose_state_file, state)
+        except OSError as error:
+            self._warn('save pose state',
+                       f'cannot save the pose state to {self.pose_state_file}: {error}')
+
     # --- inputs ----------------------------------------------------------------------
 
     def on_map(self, msg: OccupancyGrid) -> None:
@@ -213,6 +325,7 @@ class AmclNode(Node):
         except ValueError as error:
             self._warn('initial pose', f'ignoring an initial pose: {error}')
             return
+        self._restarted()
         self.get_logger().info(
             f'Setting pose: ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f}) in '
             f'{self.global_frame}, standard deviations '
@@ -225,6 +338,7 @@ class AmclNode(Node):
         except ValueError as error:
             self.get_logger().warning(f'cannot reinitialize global localization: {error}')
             return response
+        self._restarted()
         self.get_logger().info(f'Initializing with a uniform distribution of '
                                f'{self.config.max_particles} particles over the free space')
         self.publish_cloud(self.get_clock().now().to_msg())
@@ -242,7 +356,7 @@ class AmclNode(Node):
         msg = self.pending_scan
         if msg is None:
             return
-        if not self.filter.initialized:
+        if not self.filter.initialized and self.resume_state is None:
             self.pending_scan = None
             if not self.waiting_logged:
                 self.waiting_logged = True
@@ -270,6 +384,10 @@ class AmclNode(Node):
             self._warn('transform', f'ignoring a scan: {error}')
             return
         self.pending_scan = None
+        if self.resume_state is not None:
+            self._resume((odom.x, odom.y, odom.yaw))
+            if not self.filter.initialized:
+                return
         scan = ScanData(np.asarray(msg.ranges, dtype=float), msg.angle_min,
                         msg.angle_increment, msg.range_min, msg.range_max)
         started = time.perf_counter()
@@ -286,6 +404,8 @@ class AmclNode(Node):
             estimate = self.filter.estimate()
             reference = PlanarTransform(*self.filter.odom_reference)
             self.map_to_odom = PlanarTransform(*estimate.pose).compose(reference.inverse())
+            if self.pose_state_file:
+                self._keep_pose_state(estimate, stamp_s)
             self.publish_pose(estimate, msg.header.stamp)
             self.publish_cloud(msg.header.stamp)
             elapsed = time.perf_counter() - started
@@ -348,11 +468,28 @@ class AmclNode(Node):
         self.tf_pub.publish(TFMessage(transforms=[transform]))
 
     def close(self) -> None:
-        """Log the filter update time."""
+        """Save the latest pose state; log the filter update time."""
+        if self.pose_state_file and self._pose_state is not None \
+                and self._pose_state is not self._saved_state:
+            self._write_pose_state()
         if self.update_count:
             self.get_logger().info(
                 f'filter update: {1e3 * self.update_total_s / self.update_count:.1f} ms mean, '
                 f'{1e3 * self.update_max_s:.1f} ms max over {self.update_count} updates')
+
+
+def _check_pose_state_file(path: str) -> None:
+    """Raise ValueError unless path can be the pose state file (absolute, folder writable)."""
+    where = f'parameter pose_state_file {path!r}'
+    if not os.path.isabs(path):
+        raise ValueError(f'{where} must be an absolute path (or empty: no saving)')
+    file = Path(path)
+    if not file.parent.is_dir():
+        raise ValueError(f'{where}: folder {file.parent} does not exist')
+    if not os.access(file.parent, os.W_OK | os.X_OK):
+        raise ValueError(f'{where}: folder {file.parent} is not writable')
+    if file.exists() and not file.is_file():
+        raise ValueError(f'{where} exists and is not a file')
 
 
 def _warm_up(config: AmclConfig) -> None:
