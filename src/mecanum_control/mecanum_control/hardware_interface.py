@@ -55,13 +55,12 @@ from mecanum_control import esp32_protocol as proto
 from mecanum_control.board_check import open_exclusive, PortInUse
 from mecanum_control.board_clock import BoardClockSync
 from mecanum_control.imu_calibration import ImuRestCalibrator
-from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_number, declare_robot_config, positive
-from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
+from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.publisher_check_node import (
+    declare_publisher_check, poll_publisher_check, start_publisher_checks)
 from mecanum_control.wheel_odometry import wrapped_delta
 from mecanum_interfaces.msg import WheelTicks
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
@@ -153,19 +152,11 @@ class HardwareInterface(Node):
         self.efforts_sub = self.create_subscription(
             Float32MultiArray, 'motor_efforts', self.on_efforts, 10)
         # Only the expected node(s) drive the board (publisher_check): zero meanwhile.
-        self.efforts_check = PublisherCheck(
-            self.efforts_sub.topic_name, parse_expected_publishers(
-                'motor_efforts_publishers', self.declare_parameter(
-                    'motor_efforts_publishers', '',
-                    ParameterDescriptor(dynamic_typing=True)).value),
-            self.get_namespace(), 'sending zero efforts to the board',
-            'sending the efforts received from now on')
-        check_period_s = positive('publisher_check_period_s', declare_number(
-            self, 'publisher_check_period_s', 1.0))
-        if self.efforts_check.enabled:
-            self.publisher_timer = self.create_timer(
-                check_period_s, self.check_publishers,
-                clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.efforts_check = declare_publisher_check(
+            self, 'motor_efforts_publishers', self.efforts_sub.topic_name,
+            'sending zero efforts to the board', 'sending the efforts received from now on')
+        self.publisher_timer = start_publisher_checks(self, [self.efforts_check],
+                                                      self.check_publishers)
         self.clear_faults_srv = self.create_service(Trigger, '~/clear_board_faults',
                                                     self.on_clear_faults)
         # A real board (or the real-time emulator) lives in real time: the link's timers
@@ -254,22 +245,13 @@ class HardwareInterface(Node):
 
     def check_publishers(self) -> None:
         """Send zero while a node other than the expected ones publishes motor_efforts."""
-        check = self.efforts_check
-        change = check.update(self.get_publishers_info_by_topic(check.topic))
+        change = poll_publisher_check(self, self.efforts_check, self.diag_pub)
         if change is not None:
             with self._lock:  # 'stop': zero now; 'resume': only efforts from now on
                 self._efforts = ZERO_EFFORTS
                 self._efforts_at = -math.inf
             if change == 'stop':
-                self.get_logger().error(check.message)
                 self._send_efforts()
-            else:
-                self.get_logger().warning(check.gone_message)
-        self.diag_pub.publish(diagnostic_array(
-            self.get_clock().now().to_msg(),
-            f'mecanum_control: hardware_interface publishers of {check.topic}',
-            DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK, check.message,
-            [KeyValue(key=key, value=value) for key, value in check.values], hardware_id=''))
 
     def on_clear_faults(self, _request, response):
         """Ask the board to clear its latched faults (those whose cause has gone)."""

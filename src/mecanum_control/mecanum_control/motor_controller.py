@@ -30,16 +30,15 @@ from pathlib import Path
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.command_limits import (
     AxisLimits, CommandRejected, MotorCommandCore, TwistLimits)
 from mecanum_control.messages import diagnostic_array, wheel_array
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_number, declare_robot_config, positive
-from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.clock import Clock, ClockType
+from mecanum_control.parameters import declare_robot_config, positive
+from mecanum_control.publisher_check_node import (
+    declare_publisher_check, poll_publisher_check, start_publisher_checks)
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Bool, Float32MultiArray
@@ -89,18 +88,11 @@ class MotorController(Node):
         else:
             self.cmd_sub = self.create_subscription(Twist, 'cmd_vel', self.on_twist, 10)
         # Only the expected node(s) drive (publisher_check): wheels held at zero meanwhile.
-        self.cmd_check = PublisherCheck(
-            self.cmd_sub.topic_name, parse_expected_publishers(
-                'cmd_vel_publishers', self.declare_parameter(
-                    'cmd_vel_publishers', '', ParameterDescriptor(dynamic_typing=True)).value),
-            self.get_namespace(), 'wheel speed targets held at zero, commands ignored',
-            'commands accepted again')
-        check_period_s = positive('publisher_check_period_s', declare_number(
-            self, 'publisher_check_period_s', 1.0))
-        if self.cmd_check.enabled:
-            self.publisher_timer = self.create_timer(
-                check_period_s, self.check_publishers,
-                clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.cmd_check = declare_publisher_check(
+            self, 'cmd_vel_publishers', self.cmd_sub.topic_name,
+            'wheel speed targets held at zero, commands ignored', 'commands accepted again')
+        self.publisher_timer = start_publisher_checks(self, [self.cmd_check],
+                                                      self.check_publishers)
         self.estop_sub = self.create_subscription(Bool, 'emergency_stop', self.on_estop, 10)
         self.release_srv = self.create_service(Trigger, '~/release_emergency_stop',
                                                self.on_release)
@@ -191,18 +183,8 @@ class MotorController(Node):
 
     def check_publishers(self) -> None:
         """Hold the wheels while a node other than the expected ones publishes cmd_vel."""
-        check = self.cmd_check
-        change = check.update(self.get_publishers_info_by_topic(check.topic))
-        if change == 'stop':
-            self.get_logger().error(check.message)
+        if poll_publisher_check(self, self.cmd_check, self.diag_pub) == 'stop':
             self.publish_speeds()
-        elif change == 'resume':
-            self.get_logger().warning(check.gone_message)
-        self.diag_pub.publish(diagnostic_array(
-            self.get_clock().now().to_msg(),
-            f'mecanum_control: motor_controller publishers of {check.topic}',
-            DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK, check.message,
-            [KeyValue(key=key, value=value) for key, value in check.values], hardware_id=''))
 
     def close(self) -> None:
         """Publish zero wheel speeds once more on the way out."""

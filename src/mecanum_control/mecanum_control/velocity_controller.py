@@ -36,14 +36,13 @@ import sys
 from typing import List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mecanum_control.messages import diagnostic_array, wheel_array
+from mecanum_control.messages import wheel_array
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_number, declare_robot_config, positive
+from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains, StallConfig,
                                  StallDetector)
-from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.clock import Clock, ClockType
+from mecanum_control.publisher_check_node import (
+    declare_publisher_check, poll_publisher_check, start_publisher_checks)
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -105,20 +104,15 @@ class VelocityController(Node):
         # zero efforts meanwhile. On its own output, motor_efforts, it resumes one check
         # later than hardware_interface (which zeroes the board meanwhile, same period),
         # so that the loops never push against a board held at zero (a false stall).
-        self.publisher_checks = [PublisherCheck(
-            topic.topic_name, parse_expected_publishers(parameter, declare(
-                parameter, '', ParameterDescriptor(dynamic_typing=True)).value),
-            self.get_namespace(), 'all efforts zero', 'control resumes with the data received '
-            'from now on', resume_after) for topic, parameter, resume_after in (
+        self.publisher_checks = [declare_publisher_check(
+            self, parameter, topic.topic_name, 'all efforts zero',
+            'control resumes with the data received from now on', resume_after)
+            for topic, parameter, resume_after in (
                 (self.target_sub, 'motor_speeds_publishers', 1),
                 (self.joint_sub, 'joint_states_publishers', 1),
                 (self.efforts_pub, 'motor_efforts_publishers', 2))]
-        check_period_s = positive('publisher_check_period_s', declare_number(
-            self, 'publisher_check_period_s', 1.0))
-        if any(check.enabled for check in self.publisher_checks):
-            self.publisher_timer = self.create_timer(
-                check_period_s, self.check_publishers,
-                clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.publisher_timer = start_publisher_checks(self, self.publisher_checks,
+                                                      self.check_publishers)
         self.timer = self.create_timer(1.0 / control_rate_hz, self.on_control)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.get_logger().info(
@@ -203,23 +197,12 @@ class VelocityController(Node):
     def check_publishers(self) -> None:
         """Stop every wheel while a node other than the expected ones publishes an input."""
         for check in self.publisher_checks:
-            change = check.update(self.get_publishers_info_by_topic(check.topic))
-            if change == 'stop':
-                self.get_logger().error(check.message)
-            elif change == 'resume':
-                self.get_logger().warning(check.gone_message)
+            change = poll_publisher_check(self, check, self.diag_pub)
             if change is not None:
                 # Only what arrives from now on counts (none of the intruder's data).
                 self.target_time = self.measured_time = None
             if change == 'stop' and check.topic == self.efforts_pub.topic_name:
                 self._clear_stalls()
-            if check.enabled:
-                self.diag_pub.publish(diagnostic_array(
-                    self.get_clock().now().to_msg(),
-                    f'mecanum_control: velocity_controller publishers of {check.topic}',
-                    DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK,
-                    check.message, [KeyValue(key=key, value=value)
-                                    for key, value in check.values], hardware_id=''))
 
     def _clear_stalls(self) -> None:
         """Forget stalls: hardware_interface may have held the board at zero already."""
