@@ -123,3 +123,22 @@ def test_a_frozen_process_of_the_stack_stops_simulated_time(start_system, test_n
     now_s = clock_s(clock.latest())
     clock.wait_for(lambda m: clock_s(m) > now_s + 1.0, timeout=30)
     assert system.stop() == 0
+
+
+def test_a_killed_process_respawned_under_its_name_takes_part_again_at_once(
+        start_system, test_node, tmp_path):
+    system = start_system('robot_simulation', 'simulation.launch.yaml', 'world:=apartment',
+                          f'board_port:={tmp_path / "ttySIM"}', 'lockstep:=true',
+                          'real_time_factor:=0.0', f'estop_latch_file:={tmp_path / "estop"}')
+    system.wait_for_line(r'lockstep: the board .* answers: simulated time now waits', 90)
+    system.wait_for_line(r'lockstep: robot_controller takes part', 30)
+    clock = test_node.record(Clock, '/clock')
+    clock.wait_for(lambda m: True, timeout=30)
+    os.kill(system.node_pid('robot_controller'), signal.SIGKILL)
+    killed_at_s = clock_s(clock.latest())
+    system.wait_for_line(r'restarted robot_controller', 30)
+    # Within the give-up (60 s), well past what a restart takes: time runs on in lockstep.
+    clock.wait_for(lambda m: clock_s(m) > killed_at_s + 2.0, timeout=45)
+    output = system.output()
+    assert 'busy with /clock' not in output, output[-3000:]
+    assert system.stop() == 0

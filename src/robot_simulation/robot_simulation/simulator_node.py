@@ -58,7 +58,10 @@ once the board has received a command (MOTOR_EFFORTS) after it and every process
 simulated time has answered it on ``/clock_ack`` (std_msgs/Header; mecanum_control
 node_main does it), so a loaded machine slows the run down instead of changing it. A
 process that says it is alive on ``/clock_alive`` (once a second) is waited for while
-it is busy, up to ``lockstep_give_up_s``.
+it is busy, up to ``lockstep_give_up_s``. A /clock a process has not answered for
+CLOCK_RESEND_S of wall time is published again: a process restarted under the same name
+(a respawn) missed it, says it is alive, and would otherwise be waited for until
+``lockstep_give_up_s``; the others take the same time again and answer again.
 ``real_time_factor`` is then an upper bound (0: as fast as the stack answers). A part
 silent for ``lockstep_timeout_s`` wall seconds (10.0; a killed or frozen process) is
 waited for no longer, and time runs at real time at most until it answers again; no
@@ -103,6 +106,9 @@ SPIN_PERIOD_S = 0.05
 GATE_CHECK_S = 0.005
 #: Lockstep: longest wait for /clock_ack messages before a look at the serial line (s).
 ACK_WAIT_S = 0.001
+#: Lockstep: wall seconds before an unanswered /clock is published again (a respawned
+#: process missed it). Others take it again harmlessly: the same time, no timer due.
+CLOCK_RESEND_S = 1.0
 
 
 def stamp(time_s: float) -> Time:
@@ -400,6 +406,7 @@ class SimulatorNode(Node):
         meanwhile; raises LockstepError when the board has stopped answering for good.
         """
         gate, link, board = self.lockstep, self.link, self.sim.board
+        resend_at = time.monotonic() + CLOCK_RESEND_S
         while not stop.is_set():
             board.receive()
             now = self._take_board_commands()
@@ -412,6 +419,10 @@ class SimulatorNode(Node):
                     self.get_logger().info(event)
             if not missing:
                 return
+            if now >= resend_at and missing != [BOARD]:
+                # A respawned process subscribed after this /clock went out.
+                resend_at = now + CLOCK_RESEND_S
+                self.clock_pub.publish(Clock(clock=stamp(self.sim.time_s)))
             # Block on what is missing instead of polling both: the processes answer
             # /clock as soon as they take it, the board's command comes after the control
             # chain has run, so most of the wait is for the serial line alone.
