@@ -33,7 +33,7 @@ PERIOD_S = 0.02    # the simulator's clock_period_s
 
 
 def clock_s(msg: Clock) -> float:
-    """A /clock message's time in seconds."""
+    """Return a /clock message's time in seconds."""
     return msg.clock.sec + msg.clock.nanosec * 1e-9
 
 
@@ -84,7 +84,7 @@ def test_the_simulator_waits_for_the_board_and_names_it_when_it_stays_silent(
             # Gone: time runs on (at real time at most) until the give-up.
             clock.wait_for(lambda m: clock_s(m) > stalled_s + 0.5, timeout=10)
             sim.wait_for_line_at(r'\[FATAL\].*lockstep: the board \(MOTOR_EFFORTS from '
-                              r'hardware_interface\) has not answered for 4 s', timeout=30)
+                                 r'hardware_interface\) has not answered for 4 s', timeout=30)
             assert sim.process.wait(timeout=20) == 1
             assert 'Traceback' not in sim.output()
         finally:
