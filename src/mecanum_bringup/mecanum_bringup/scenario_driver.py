@@ -50,9 +50,10 @@ import rclpy
 from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from robot_simulation.lockstep import PROCESS_DOWN_TOPIC
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Header, String, UInt32
-from std_srvs.srv import Trigger
+from std_srvs.srv import Empty, Trigger
 
 #: The command chain's stages whose STOP states are recorded as safety events.
 SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
@@ -68,6 +69,8 @@ LOCKSTEP_NAME = 'scenario_runner'
 #: The simulator's fault topic and the e-stop's (see the module docstring).
 FAULT_TOPIC = 'simulator/faults'
 FAULT_REPORT_TOPIC = 'simulator/active_faults'
+#: amcl's service that spreads its particles over the map (the amcl_diverged fault).
+GLOBAL_LOCALIZATION_SERVICE = 'reinitialize_global_localization'
 ESTOP_TOPIC = 'emergency_stop'
 ESTOP_RELEASE_SERVICE = 'motor_controller/release_emergency_stop'
 #: History kept for late joiners of simulator/faults (a restarted simulator).
@@ -134,6 +137,9 @@ class ScenarioDriver:
             depth=1, reliability=ReliabilityPolicy.RELIABLE,
             durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._estop_release = node.create_client(Trigger, ESTOP_RELEASE_SERVICE)
+        self._down_pub = node.create_publisher(String, PROCESS_DOWN_TOPIC, QoSProfile(
+            depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self._global_localization = node.create_client(Empty, GLOBAL_LOCALIZATION_SERVICE)
         self._release_answers: List[Any] = []
         self._release_wanted = False     # until motor_controller accepted a reset
         self._fault_reports: List[Dict[str, Any]] = []
@@ -476,6 +482,21 @@ class ScenarioDriver:
         self._release_wanted = not engaged
         if not engaged:
             self._release_answers.append(self._estop_release.call_async(Trigger.Request()))
+
+    def process_down(self, name: str) -> None:
+        """Tell the simulator's lockstep that process name was just frozen or killed."""
+        self._down_pub.publish(String(data=name))
+
+    def reinitialize_global_localization(self) -> bool:
+        """
+        Ask amcl to spread its particles over the whole map (Nav2's std_srvs/Empty service).
+
+        Returns False (nothing asked) when no amcl serves it. The answer is not awaited.
+        """
+        if not self._global_localization.service_is_ready():
+            return False
+        self._global_localization.call_async(Empty.Request())
+        return True
 
     def keep_releasing(self) -> None:
         """Ask for the e-stop's reset again if the last call was refused; call every poll."""

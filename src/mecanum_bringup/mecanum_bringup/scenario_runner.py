@@ -405,6 +405,10 @@ class FaultInjector:
     - node_frozen: SIGSTOP to the process running node (system.pid_of), SIGCONT
       duration_s later (or when the run ends: :meth:`finish`);
     - node_killed: SIGKILL to it (the launch runner respawns the node, if it respawns);
+      for both, the simulator's lockstep is told at once (driver.process_down): simulated
+      time runs on while the process is down, as wall time does on a robot;
+    - amcl_diverged: amcl's reinitialize_global_localization is called (its particles
+      spread over the map); 'applied' false when no amcl serves it;
     - estop: the operator presses the e-stop (driver.set_estop(True): emergency_stop
       true) and releases it duration_s later (driver.set_estop(False): false, and the
       reset of motor_controller's latched stop), not at all when duration_s is None.
@@ -436,7 +440,7 @@ class FaultInjector:
         self._specs.append(absolute)
         if fault.where == SIMULATOR:
             self.driver.send_fault(absolute.as_dict())
-        elif fault.kind in NODE_FAULTS + ('estop',):
+        elif fault.kind in NODE_FAULTS + ('estop', 'amcl_diverged'):
             if fault.kind in NODE_FAULTS:
                 self._pid(fault)   # a node no process runs: an error now, not at onset
             self._schedule(absolute.onset_s, index, 'begin')
@@ -500,8 +504,17 @@ class FaultInjector:
             pid = self._pid(spec)
             if self._signal(pid, signal.SIGSTOP):
                 self._stopped[index] = pid
+                self.driver.process_down(spec.param('node'))
         elif spec.kind == 'node_killed':
-            self._signal(self._pid(spec), signal.SIGKILL)
+            if self._signal(self._pid(spec), signal.SIGKILL):
+                self.driver.process_down(spec.param('node'))
+            entry['ended_s'] = now_s
+            return
+        elif spec.kind == 'amcl_diverged':
+            applied = self.driver.reinitialize_global_localization()
+            entry['applied'] = applied
+            entry['outcome'] = ('particles spread over the map' if applied else
+                                'no amcl serves reinitialize_global_localization')
             entry['ended_s'] = now_s
             return
         else:

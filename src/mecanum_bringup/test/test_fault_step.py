@@ -109,6 +109,7 @@ class FakeDriver:
     def __init__(self):
         self.sent = []
         self.reports = []
+        self.amcl_serves = True
 
     def fault_reports(self):
         return self.reports
@@ -121,6 +122,13 @@ class FakeDriver:
 
     def keep_releasing(self):
         pass
+
+    def process_down(self, name):
+        self.sent.append(('down', name))
+
+    def reinitialize_global_localization(self):
+        self.sent.append(('global_localization', self.amcl_serves))
+        return self.amcl_serves
 
 
 @pytest.fixture
@@ -151,6 +159,9 @@ def test_runner_faults_act_at_their_simulated_times_in_order(injector):
     assert kills == [] and record.faults[0]['began_s'] is None
     faults.due(12.0)
     assert kills == [(101, signal.SIGSTOP)]
+    # The simulator's lockstep waits no longer for it.
+    assert driver.sent == [('down', 'amcl')]
+    driver.sent.clear()
     # Step 2 starts at 13 s: the e-stop at once (onset 0) for 3 s, to 16 s.
     faults.add(FaultSpec('estop', 0.0, 3.0), 13.0, 2)
     assert driver.sent == [('estop', True)]
@@ -163,7 +174,7 @@ def test_runner_faults_act_at_their_simulated_times_in_order(injector):
     # The first poll after 16 s: the kill (due 13.5) before the release (due 16).
     faults.due(16.2)
     assert kills[1:] == [(202, signal.SIGKILL)]
-    assert driver.sent[2:] == [('estop', False)]
+    assert driver.sent[2:] == [('down', 'twist_mux'), ('estop', False)]
     faults.due(16.99)
     assert len(kills) == 2
     faults.due(17.0)
@@ -203,7 +214,7 @@ def test_the_run_end_resumes_a_frozen_node_and_a_gone_process_is_no_error(inject
     faults.add(frozen('gone', 0.0, 2.0), 3.0, 3)        # its process had exited
     assert kills == [(101, signal.SIGSTOP)]
     faults.due(4.0)
-    assert faults.driver.sent == [('estop', True)]
+    assert faults.driver.sent == [('down', 'amcl'), ('estop', True)]
     faults.due(5.0)   # the gone process's end: nothing to resume
     assert kills == [(101, signal.SIGSTOP)]
     faults.finish()
@@ -221,7 +232,22 @@ def test_a_node_no_process_runs_is_an_error_at_the_fault_step(injector):
 
 def test_every_runner_kind_is_one_the_injector_applies():
     runner_kinds = {name for name, kind in FAULT_KINDS.items() if kind.where == 'runner'}
-    assert runner_kinds == {'node_frozen', 'node_killed', 'estop'}
+    assert runner_kinds == {'node_frozen', 'node_killed', 'estop', 'amcl_diverged'}
+
+
+def test_amcl_diverged_asks_amcl_to_spread_its_particles_and_says_when_none_serves(injector):
+    faults, kills, record = injector
+    faults.add(FaultSpec('amcl_diverged', 2.0, 0.0), 10.0, 1)
+    assert faults.driver.sent == []
+    faults.due(12.0)
+    assert faults.driver.sent == [('global_localization', True)]
+    assert (record.faults[0]['began_s'], record.faults[0]['ended_s'],
+            record.faults[0]['applied']) == (12.0, 12.0, True)
+    faults.driver.amcl_serves = False      # e.g. slam:=true: no amcl
+    faults.add(FaultSpec('amcl_diverged', 0.0, 0.0), 13.0, 2)
+    assert (record.faults[1]['applied'], record.faults[1]['outcome']) == (
+        False, 'no amcl serves reinitialize_global_localization')
+    assert kills == []
 
 
 # --- each faulted node in a process of its own ------------------------------------------

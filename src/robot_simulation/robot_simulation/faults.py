@@ -37,7 +37,8 @@ class FaultKind:
     #: parameter name -> default (None: required). Numbers are floats; 'wheel' and
     #: 'node' are strings.
     params: Dict[str, Any] = field(default_factory=dict)
-    #: True when the fault is an instant (kidnap): its duration must be 0.
+    #: True when the fault is an instant (kidnap, node_killed, amcl_diverged): its
+    #: duration must be 0.
     instant: bool = False
 
 
@@ -75,6 +76,11 @@ FAULT_KINDS: Dict[str, FaultKind] = {kind.name: kind for kind in (
               {'node': None}),
     FaultKind('node_killed', RUNNER, 'the process running node is killed (SIGKILL)',
               {'node': None}, instant=True),
+    FaultKind('amcl_diverged', RUNNER,
+              "amcl's particles are spread over the whole map (its "
+              'reinitialize_global_localization service): the covariance explodes and the '
+              'estimate wanders until the particles converge again, maybe elsewhere',
+              instant=True),
     FaultKind('estop', RUNNER,
               'the operator presses the e-stop (emergency_stop true) and releases it '
               '(false) duration_s later'),

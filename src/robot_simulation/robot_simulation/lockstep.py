@@ -24,8 +24,11 @@ A stalled stack therefore stalls simulated time instead of losing it. A part sil
 one /clock for ``give_up_s`` is gone too): it holds time back no longer, and
 while any part is gone, or before the board has answered at all (the stack is still
 starting), the simulation runs at real time at most. A gone part that answers again
-takes part again. The board silent for ``give_up_s`` of wall time ends the run with
-:class:`LockstepError`, naming it.
+takes part again. A part known to be down (:meth:`Lockstep.down`: the scenario runner
+froze or killed it) is gone at once: a dead or stopped process holds no simulated time
+back, so the stack's watchdogs see its silence as a real robot's would. The board
+silent for ``give_up_s`` of wall time ends the run with :class:`LockstepError`, naming
+it.
 
 Times: ``sim_s`` simulated seconds, ``wall_s`` seconds of a monotonic wall clock.
 """
@@ -34,6 +37,9 @@ from dataclasses import dataclass
 import math
 from typing import Dict, List, Optional
 
+#: The topic (std_msgs/String: a process's /clock_ack name) on which the scenario runner
+#: names a process it has just frozen or killed (the simulator calls Lockstep.down).
+PROCESS_DOWN_TOPIC = 'simulator/process_down'
 #: The board's name in messages.
 BOARD = 'the board (MOTOR_EFFORTS from hardware_interface)'
 
@@ -132,6 +138,20 @@ class Lockstep:
         part = self._participants.get(name)
         if part is not None:
             part.alive_wall_s = max(part.alive_wall_s, wall_s)
+
+    def down(self, name: str, why: str) -> None:
+        """
+        Take part name as gone now: its process was stopped or killed (why says how).
+
+        Simulated time no longer waits for it (at real time at most, as for any gone
+        part) until it answers again. A name never heard is ignored.
+        """
+        part = self._participants.get(name)
+        if part is None or part.gone:
+            return
+        part.gone = True
+        self._events.append(f'lockstep: {name} is down ({why}): going on without it, at '
+                            'real time at most')
 
     # --- outputs -----------------------------------------------------------------------
     def waiting_for(self, wall_s: float) -> List[str]:

@@ -61,7 +61,10 @@ process that says it is alive on ``/clock_alive`` (once a second) is waited for 
 it is busy, up to ``lockstep_give_up_s``. A /clock a process has not answered for
 CLOCK_RESEND_S of wall time is published again: a process restarted under the same name
 (a respawn) missed it, says it is alive, and would otherwise be waited for until
-``lockstep_give_up_s``; the others take the same time again and answer again.
+``lockstep_give_up_s``; the others take the same time again and answer again. A
+process named on ``simulator/process_down`` (std_msgs/String: its /clock_ack name; the
+scenario runner sends it as it freezes or kills the process) is waited for no longer at
+once, so that simulated time runs on while it is down, as wall time would on a robot.
 ``real_time_factor`` is then an upper bound (0: as fast as the stack answers). A part
 silent for ``lockstep_timeout_s`` wall seconds (10.0; a killed or frozen process) is
 waited for no longer, and time runs at real time at most until it answers again; no
@@ -89,7 +92,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from robot_simulation.fault_injection import FaultChange, parse_fault_message
 from robot_simulation.faults import FaultError
-from robot_simulation.lockstep import BOARD, Lockstep, LockstepConfig, LockstepError
+from robot_simulation.lockstep import (
+    BOARD, Lockstep, LockstepConfig, LockstepError, PROCESS_DOWN_TOPIC)
 from robot_simulation.sensors import ImuConfig, LidarConfig
 from robot_simulation.simulator import Simulation, SimulatorConfig
 from robot_simulation.world import find_world, load_world
@@ -193,6 +197,8 @@ class SimulatorNode(Node):
                                                     reliable)
             self.alive_sub = self.create_subscription(
                 Header, '/clock_alive', self.on_clock_alive, reliable)
+            self.down_sub = self.create_subscription(
+                String, PROCESS_DOWN_TOPIC, self.on_process_down, reliable)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 10)
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
         self.movers_pub = self.create_publisher(PoseArray, 'ground_truth/moving_obstacles', 10)
@@ -235,6 +241,10 @@ class SimulatorNode(Node):
     def on_clock_alive(self, msg: Header) -> None:
         """Take a process's sign of life (lockstep: a busy process is waited for)."""
         self.lockstep.alive(msg.frame_id, time.monotonic())
+
+    def on_process_down(self, msg: String) -> None:
+        """Take a process as gone now (lockstep): the scenario runner froze or killed it."""
+        self.lockstep.down(msg.data, 'stopped or killed, says the scenario runner')
 
     def on_faults(self, msg: String) -> None:
         """Schedule the faults of a control message (a bad one is logged and ignored)."""

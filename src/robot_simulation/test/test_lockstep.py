@@ -126,3 +126,26 @@ def test_a_board_that_answers_again_is_locked_again():
 def test_bad_limits_are_refused(timeout_s, give_up_s):
     with pytest.raises(ValueError, match='lockstep'):
         LockstepConfig(timeout_s=timeout_s, give_up_s=give_up_s)
+
+
+def test_a_part_said_down_is_not_waited_for_at_once_and_takes_part_again_when_it_answers():
+    gate = started(timeout_s=2.0)
+    gate.ack('twist_mux', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    gate.board_command(wall_s=1.0)
+    assert gate.waiting_for(1.001) == ['twist_mux']
+    gate.events()
+    gate.down('twist_mux', 'killed')             # long before the 2 s timeout
+    assert gate.waiting_for(1.002) == []
+    assert gate.free_running
+    assert gate.events() == ['lockstep: twist_mux is down (killed): going on without it, '
+                             'at real time at most']
+    gate.down('twist_mux', 'killed')             # already gone: nothing new
+    gate.down('never_heard', 'killed')           # not a participant: ignored
+    assert gate.events() == [] and gate.participants == ['twist_mux']
+    # The respawned process (same name) takes the next /clock: locked again.
+    gate.published(0.04, wall_s=1.1)
+    gate.board_command(wall_s=1.1)
+    gate.ack('twist_mux', 0.04, wall_s=1.2)
+    assert gate.events() == ['lockstep: twist_mux answers again']
+    assert not gate.free_running
