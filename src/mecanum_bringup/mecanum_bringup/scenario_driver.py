@@ -34,6 +34,7 @@ at some step changes: issue 19).
 import functools
 import json
 import math
+import re
 import threading
 import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
@@ -57,6 +58,10 @@ from std_srvs.srv import Empty, Trigger
 
 #: The command chain's stages whose STOP states are recorded as safety events.
 SAFETY_STATE_TOPICS = ('collision_monitor_state', 'zone_guard_state')
+#: twist_mux's state (the live source, 'none', 'locked by LOCK', 'held NAME'; latched).
+MUX_STATE_TOPIC = 'cmd_vel_mux_state'
+#: Numbers in a chain stage's state (a sigma, a distance) do not make a new state.
+_NUMBER = re.compile(r'[-+]?\d+(\.\d*)?')
 #: Wall seconds to wait for a goal's answer before sending it again (lost in discovery).
 GOAL_RESEND_S = 2.0
 #: Wall seconds to wait for an answer at all.
@@ -122,9 +127,12 @@ class ScenarioDriver:
         node.create_subscription(String, 'control_status', self._on_status, 20)
         self._safety_events: List[Tuple[float, str, str, float, float]] = []
         self._chain_state: Dict[str, str] = {}
+        self._chain_states: List[Tuple[float, str, str]] = []
         for topic in SAFETY_STATE_TOPICS:
             node.create_subscription(String, topic, functools.partial(
                 self._on_chain_state, topic.replace('_state', '')), 20)
+        node.create_subscription(String, MUX_STATE_TOPIC, functools.partial(
+            self._on_chain_state, 'twist_mux'), latched)
         self._twist_pubs = {topic: node.create_publisher(Twist, topic, 10)
                             for topic in command_sources().values()}
         self.command_pub = node.create_publisher(String, 'control_command', 10)
@@ -283,12 +291,28 @@ class ScenarioDriver:
                 self._add_safety_event('robot_controller', msg.data)
 
     def _on_chain_state(self, node_name: str, msg: String) -> None:
-        """Record each change of a chain stage's state into a STOP (not every message)."""
+        """
+        Record each change of a chain stage's state (not every message).
+
+        Every change (numbers aside) goes into chain_states; a change into a STOP, a lock
+        or a hold is also a safety event.
+        """
         with self._lock:
-            previous = self._chain_state.get(node_name, '')
+            previous = self._chain_state.get(node_name)
             self._chain_state[node_name] = msg.data
-            if msg.data.startswith('STOP') and not previous.startswith('STOP'):
+            if previous is not None and _NUMBER.sub('#', previous) == _NUMBER.sub(
+                    '#', msg.data):
+                return
+            t = self._truth[-1][0] if self._truth else math.nan
+            self._chain_states.append((t, node_name, msg.data))
+            stopping = ('STOP', 'locked', 'held')
+            if msg.data.startswith(stopping) and not (previous or '').startswith(stopping):
                 self._add_safety_event(node_name, msg.data)
+
+    def chain_states(self) -> List[Tuple[float, str, str]]:
+        """Return (t, node, state) at each change of a chain stage's state."""
+        with self._lock:
+            return list(self._chain_states)
 
     def _add_safety_event(self, node_name: str, text: str) -> None:
         """Append an event at the latest true pose (call with the lock held)."""

@@ -23,6 +23,7 @@ import functools
 import math
 from typing import Any, List, Optional
 
+from mecanum_bringup.fault_reactions import judge_reaction
 from mecanum_bringup.scenario_model import (
     CommandStep, CriterionResult, ERROR_NAMES, GoalStep, RunRecord, Scenario, Step,
     StepResult, Verdict, WaypointsStep)
@@ -163,6 +164,8 @@ def judge(scenario: Scenario, record: RunRecord,
         results.append(_judge_zone(scenario.authorised_zone, record.truth, radius_m))
     if criteria.max_localization_error_m is not None:
         results.append(_judge_localization(criteria.max_localization_error_m, record))
+    if criteria.fault_reactions:
+        results.append(_judge_fault_reactions(scenario, record))
     verdict = 'pass' if all(r.passed for r in results) else 'fail'
     return Verdict(scenario.name, scenario.expect, verdict, tuple(results))
 
@@ -253,6 +256,23 @@ def _judge_zone(zone: Optional[Zone], truth: Any, radius_m: float) -> ZoneResult
             detail += f', first at t={track[first, 0]:.1f} s ({track[first, 1]:.2f}, ' \
                       f'{track[first, 2]:.2f})'
     return ZoneResult(name, passed, detail, clearance, t, x, y, radius_m)
+
+
+def _judge_fault_reactions(scenario: Scenario, record: RunRecord) -> CriterionResult:
+    name = 'fault_reaction'
+    if not record.faults:
+        return CriterionResult(name, True, f'{name}: no fault injected')
+    goals = [result.outcome == 'reached' for step, result in
+             zip(scenario.steps, record.step_results)
+             if isinstance(step, (GoalStep, WaypointsStep))]
+    if len(record.step_results) < len(scenario.steps) and any(
+            isinstance(step, (GoalStep, WaypointsStep)) for step in scenario.steps):
+        goals.append(False)     # a goal step that never ran was not reached
+    reached = all(goals) if goals else None
+    judged = [judge_reaction(fault, record.truth, record.chain_states, reached)
+              for fault in record.faults]
+    return CriterionResult(name, all(r.passed for r in judged),
+                           f'{name}: ' + '; '.join(r.detail for r in judged))
 
 
 def _judge_localization(limit_m: float, record: RunRecord) -> CriterionResult:

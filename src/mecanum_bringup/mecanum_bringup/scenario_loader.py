@@ -48,6 +48,8 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
         no_collision: true
         stay_in_zone: true             # the robot's centre (ground truth) inside the zone
         max_localization_error_m: null # |estimate - truth| in x, y, at every estimate
+        fault_reactions: false         # each injected fault's expected reaction
+                                       # (mecanum_bringup.fault_reactions)
       expect: pass                     # pass | fail: the verdict this scenario must get
 
 Goal ``expect``: ``reached`` (default), ``refused`` (the goal must end with the error code
@@ -96,7 +98,8 @@ COMMAND_TIMEOUT_MARGIN_S = 10.0
 SCENARIO_KEYS = ('name', 'description', 'world', 'map', 'spawn', 'initial_pose',
                  'floor_friction_coefficient', 'sensor_noise_scale', 'real_time_factor', 'seed',
                  'authorised_zone', 'moving_obstacles', 'steps', 'criteria', 'expect')
-CRITERIA_KEYS = ('max_duration_s', 'no_collision', 'stay_in_zone', 'max_localization_error_m')
+CRITERIA_KEYS = ('max_duration_s', 'no_collision', 'stay_in_zone', 'max_localization_error_m',
+                 'fault_reactions')
 
 
 class ScenarioError(ValueError):
@@ -444,7 +447,9 @@ class _Parser(DocumentChecker):
                                       'criteria.stay_in_zone'),
             max_localization_error_m=self.optional_positive(
                 raw.get('max_localization_error_m', defaults.max_localization_error_m),
-                'criteria.max_localization_error_m'))
+                'criteria.max_localization_error_m'),
+            fault_reactions=self.boolean(raw.get('fault_reactions', defaults.fault_reactions),
+                                         'criteria.fault_reactions'))
 
 
 #: A world message about a moving obstacle: index, ' name' (if any), .key (if any), message.

@@ -206,6 +206,8 @@ class Criteria:
     no_collision: bool = True
     stay_in_zone: bool = True
     max_localization_error_m: Optional[float] = None
+    #: Judge each injected fault's reaction (mecanum_bringup.fault_reactions).
+    fault_reactions: bool = False
 
 
 @dataclass(frozen=True)
@@ -314,6 +316,9 @@ class RunRecord:
     #: (collision_monitor or zone_guard STOP) or robot_controller refused or stopped a
     #: command, with the robot's true position then.
     safety_events: List[Tuple[float, str, str, float, float]] = field(default_factory=list)
+    #: (t, node, state) at each change of a chain stage's state (twist_mux,
+    #: collision_monitor, zone_guard; numbers in a state do not make a change).
+    chain_states: List[Tuple[float, str, str]] = field(default_factory=list)
     step_results: List[StepResult] = field(default_factory=list)
     duration_s: float = 0.0
     aborted: Optional[str] = None

@@ -206,6 +206,8 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
         'safety_events': [{'t_s': _finite_or_none(t), 'node': node, 'state': text,
                            'x_m': _finite_or_none(x), 'y_m': _finite_or_none(y)}
                           for t, node, text, x, y in record.safety_events],
+        'chain_states': [{'t_s': _finite_or_none(t), 'node': node, 'state': text}
+                         for t, node, text in record.chain_states],
         'steps': [{'kind': r.kind, 'outcome': r.outcome, 'error_code': int(r.error_code),
                    'error_message': r.error_message, 'start_s': _finite_or_none(r.start_s),
                    'end_s': _finite_or_none(r.end_s)} for r in record.step_results],

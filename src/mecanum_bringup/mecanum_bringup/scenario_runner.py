@@ -599,6 +599,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
                 record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
                 record.collision_times = list(driver.collision_times)
                 record.safety_events = driver.safety_events()
+                record.chain_states = driver.chain_states()
                 plans = driver.plans()
                 collision_points = driver.collision_points()
                 driver.close()

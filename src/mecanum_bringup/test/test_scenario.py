@@ -846,7 +846,7 @@ def test_shipped_spawns_and_goals_are_where_they_must_be(shipped):
             where = f'{scenario.name} {step.describe()}'
             in_zone = scenario.authorised_zone.footprint_inside(
                 step.x, step.y, ROBOT.footprint_radius_m)
-            if step.expect == 'reached':
+            if step.expect in ('reached', 'any'):   # any: reachable, a fault may stop it
                 clearance = NARROW_GOALS.get((scenario.name, goal_index), CLEARANCE_M)
                 assert world.is_free(step.x, step.y, clearance_m=clearance), where
                 assert in_zone, where

@@ -206,10 +206,11 @@ def test_the_shipped_fault_sweep_has_every_kind_at_3_onsets_on_2_scenarios(tmp_p
     nodes = {'twist_mux', 'collision_monitor', 'zone_guard', 'amcl'}
     for kind in ('node_frozen', 'node_killed'):
         assert {f['node'] for f in faults if f['kind'] == kind} == nodes, kind
-    assert len(faults) == 12 + 2 * 4 + 1   # 12 simulator kinds, 8 node faults, the e-stop
-    assert variant_count(sweep) == 2 * 21 * 3 == 126
+    # 12 simulator kinds, 8 node faults, amcl diverged, the e-stop
+    assert len(faults) == 12 + 2 * 4 + 1 + 1
+    assert variant_count(sweep) == 2 * 22 * 3 == 132
     prepared = prepare(sweep, tmp_path)
-    assert len(prepared) == 126
+    assert len(prepared) == 132
     for item in prepared:
         scenario = item.scenario_document['scenario']
         first = scenario['steps'][0]['fault']
@@ -218,3 +219,4 @@ def test_the_shipped_fault_sweep_has_every_kind_at_3_onsets_on_2_scenarios(tmp_p
     for name in sweep.axes['scenario']:
         criteria = sweep.scenarios[name][1]['scenario']['criteria']
         assert criteria['no_collision'] is True and criteria['stay_in_zone'] is True
+        assert criteria['fault_reactions'] is True

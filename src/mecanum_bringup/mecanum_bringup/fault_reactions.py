@@ -1,0 +1,229 @@
+"""
+What the robot must do under each fault, and the judging of it (pure, no ROS).
+
+One table, :data:`REACTIONS`, gives each fault kind's expected reaction (for the node
+faults, per node); docs/failure_modes.md says the same in words. A scenario with
+``criteria: {fault_reactions: true}`` is judged against it for every fault it injected
+(:func:`judge_fault_reactions`, one ``fault_reaction`` line in the verdict):
+
+- **stop** (``stop_within_s``): from ``stop_within_s`` after the fault began until it
+  ended, the robot is at rest on the ground truth: translation below
+  :data:`REST_SPEED_M_S`, and unless turning on the spot is allowed (an unhealthy
+  localisation lets the robot turn so that amcl updates) rotation below
+  :data:`REST_TURN_RAD_S`. An instant fault (a kill) is judged until ``stop_until_s``
+  after it (the respawn delay);
+- **says why** (``says``: (node, words) pairs): while the fault acts, a stage of the
+  command chain states a stop, lock or hold naming it (its state topic: twist_mux's
+  ``cmd_vel_mux_state``, ``collision_monitor_state``, ``zone_guard_state``), unless no
+  command source was live then (twist_mux said ``none`` throughout: nothing to stop);
+- **mission** (:data:`CONTINUES`): the fault is ridden out or recovered from: every goal
+  and waypoints step of the run was reached; (:data:`SAFE`): only the safety invariants
+  (no collision, footprint in the zone), which are criteria of their own.
+
+A fault that never acted within the run (its onset after the run's end, a kidnap the
+simulator refused, amcl_diverged without amcl) fails the line: the variant tested nothing.
+Tracks are (N, 4) arrays t, x, y, yaw (simulated s, m, rad; map frame).
+"""
+
+from dataclasses import dataclass
+import math
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+#: The robot is at rest below these (ground truth; finite differences at 50 Hz).
+REST_SPEED_M_S = 0.02
+REST_TURN_RAD_S = 0.05
+#: A stage's statement counts from the fault's start to this long after its end (s).
+SAYS_GRACE_S = 0.5
+#: The respawn delay of the stack's nodes (launch files: respawn_delay 1.0 s of wall
+#: time; simulated time runs at real time at most while a process is down).
+RESPAWN_DELAY_S = 1.0
+
+CONTINUES = 'continues'
+SAFE = 'safe'
+
+#: The state of twist_mux when no source is live (mecanum_safety.twist_mux).
+MUX_IDLE = 'none'
+
+
+@dataclass(frozen=True)
+class Reaction:
+    """The expected reaction to one fault kind (see the module docstring)."""
+
+    does: str
+    stop_within_s: Optional[float] = None
+    turning_allowed: bool = False
+    says: Tuple[Tuple[str, str], ...] = ()
+    mission: str = CONTINUES
+    #: For instants (kills): at rest until this long after the fault (s).
+    stop_until_s: Optional[float] = None
+
+
+_LIDAR = 'collision_monitor'
+_CHAIN_NODES = ('twist_mux', 'collision_monitor', 'zone_guard')
+_WATCHDOG = "the next stage's command timeout stops the wheels (motor_controller 0.25 s)"
+
+#: kind -> Reaction; node faults: 'kind:node' (a node not listed: 'kind:*').
+REACTIONS: Dict[str, Reaction] = {
+    'lidar_blinded': Reaction('stops: scan blinded; drives on once beams return', 1.0,
+                              says=((_LIDAR, 'scan blinded'),)),
+    'lidar_frozen': Reaction('stops after 5 identical scans: scan frozen', 1.5,
+                             says=((_LIDAR, 'scan frozen'),)),
+    'lidar_silent': Reaction('stops after the 1 s source timeout: scan stale', 2.0,
+                             says=((_LIDAR, 'scan stale'), (_LIDAR, 'scan no data'))),
+    'scan_stamp_skew': Reaction('stops: scan stamped in the future (or stale)', 1.0,
+                                says=((_LIDAR, 'stamped in the future'),
+                                      (_LIDAR, 'scan stale'))),
+    'imu_silent': Reaction('drives on with wheel odometry (the board reports IMU_FAULT)'),
+    'imu_bias': Reaction('drives on; amcl corrects the heading in the map frame'),
+    'encoder_stuck': Reaction('every wheel stops once the stuck wheel is driven (stall '
+                              'check 0.5 s)', 1.5, mission=SAFE),
+    'wheel_slip': Reaction('drives on; amcl corrects the odometry from the scans'),
+    'kidnap': Reaction('drives on; amcl relocalises from the scans as the robot moves'),
+    'serial_bit_flips': Reaction('drives on: CRC-16 drops the bad frames'),
+    'serial_drop_bytes': Reaction('drives on: lost frames dropped, the board holds the '
+                                  'last effort up to its 0.15 s command timeout'),
+    'serial_latency': Reaction('drives on late; a latency that shakes the wheel speed loop '
+                               'can make the localisation unhealthy: then it stops',
+                               mission=SAFE),
+    'amcl_diverged': Reaction('stops all but turning on the spot: localisation unhealthy '
+                              '(or jumped: latched until /initialpose)', 1.5,
+                              turning_allowed=True,
+                              says=(('zone_guard', 'localisation unhealthy'),),
+                              mission=SAFE),
+    'estop': Reaction('stops at once; stays stopped until the operator resets it', 0.6,
+                      says=(('twist_mux', 'e_stop'),), mission=SAFE),
+    **{f'node_frozen:{node}': Reaction(f'stops: {_WATCHDOG}; drives on once it resumes',
+                                       0.6) for node in _CHAIN_NODES},
+    **{f'node_killed:{node}': Reaction(f'stops: {_WATCHDOG}; drives on once respawned',
+                                       0.6, stop_until_s=RESPAWN_DELAY_S)
+       for node in _CHAIN_NODES},
+    'node_frozen:amcl': Reaction('stops: no pose (map -> odom older than 0.5 s); drives on '
+                                 'once it resumes', 1.5, says=(('zone_guard', 'no pose'),)),
+    'node_killed:amcl': Reaction('the respawned amcl resumes from its saved pose; drives on'),
+    'node_frozen:*': Reaction('whatever the node does, the invariants hold', mission=SAFE),
+    'node_killed:*': Reaction('whatever the node does, the invariants hold', mission=SAFE),
+}
+
+
+def reaction_for(fault: Mapping[str, Any]) -> Reaction:
+    """Return the expected reaction to a fault (a RunRecord.faults entry or FaultSpec dict)."""
+    kind = fault['kind']
+    if kind in ('node_frozen', 'node_killed'):
+        return REACTIONS.get(f'{kind}:{fault.get("node")}', REACTIONS[f'{kind}:*'])
+    return REACTIONS[kind]
+
+
+@dataclass(frozen=True)
+class ReactionResult:
+    """How one fault's reaction went: passed, and the words for the verdict."""
+
+    passed: bool
+    detail: str
+
+
+def chain_state_at(states: Sequence[Tuple[float, str, str]], node: str,
+                   t_s: float) -> Optional[str]:
+    """Return node's last state at or before t_s from (t, node, state) changes, or None."""
+    current = None
+    for time_s, name, text in states:
+        if time_s > t_s:
+            break
+        if name == node:
+            current = text
+    return current
+
+
+def judge_reaction(fault: Mapping[str, Any], truth: Any,
+                   chain_states: Sequence[Tuple[float, str, str]],
+                   goals_reached: Optional[bool]) -> ReactionResult:
+    """
+    Judge one fault's reaction (see the module docstring).
+
+    fault: a RunRecord.faults entry (kind, began_s, ended_s, node...); truth: (N, 4) t, x,
+    y, yaw; chain_states: (t, node, state) at each change of a chain stage's state,
+    sorted by t; goals_reached: whether every goal step was reached (None: no goal step).
+    """
+    reaction = reaction_for(fault)
+    name = fault['kind'] + (f' {fault["node"]}' if fault.get('node') else '')
+    began, ended = fault.get('began_s'), fault.get('ended_s')
+    if began is None:
+        return ReactionResult(False, f'{name}: never acted within the run (onset '
+                                     f'{fault.get("onset_s", math.nan):.1f} s)')
+    if fault.get('applied') is False:
+        return ReactionResult(False, f'{name}: not applied: {fault.get("outcome", "")}')
+    problems: List[str] = []
+    found: List[str] = []
+    if reaction.stop_within_s is not None:
+        if reaction.stop_until_s is not None:
+            end = began + reaction.stop_until_s
+        else:
+            end = ended if ended is not None else math.inf
+        start = began + reaction.stop_within_s
+        moving = _first_motion(truth, start, end, reaction.turning_allowed)
+        if moving is not None:
+            problems.append(f'moving at {moving[1]:.2f} {moving[2]} at t={moving[0]:.2f} s, '
+                            f'{moving[0] - began:.2f} s after it began (at rest expected '
+                            f'from {reaction.stop_within_s:g} s)')
+        else:
+            found.append(f'at rest from +{reaction.stop_within_s:g} s'
+                         + ('' if math.isinf(end) else f' to +{end - began:.1f} s'))
+    if reaction.says:
+        last = (ended if ended is not None and ended > began else
+                began + (reaction.stop_until_s or reaction.stop_within_s or 0.0))
+        said = _said(chain_states, reaction.says, began, last + SAYS_GRACE_S)
+        if said is not None:
+            found.append(f'{said[0]} said "{said[1]}"')
+        elif _a_source_was_live(chain_states, began, last):
+            wanted = ' or '.join(f'{node} "{words}"' for node, words in reaction.says)
+            problems.append(f'no stage said why (expected {wanted})')
+    if reaction.mission == CONTINUES and goals_reached is False:
+        problems.append('a goal was not reached (the robot should drive on or recover)')
+    elif reaction.mission == CONTINUES and goals_reached:
+        found.append('goals reached')
+    if problems:
+        return ReactionResult(False, f'{name}: ' + '; '.join(problems))
+    return ReactionResult(True, f'{name}: ' + (', '.join(found) or reaction.does))
+
+
+def _first_motion(truth: Any, start_s: float, end_s: float,
+                  turning_allowed: bool) -> Optional[Tuple[float, float, str]]:
+    """Return (t, speed, unit) of the first motion between start_s and end_s, or None."""
+    track = np.asarray(truth, dtype=np.float64).reshape(-1, 4)
+    if len(track) < 2 or end_s <= start_s:
+        return None
+    dt = np.diff(track[:, 0])
+    ok = dt > 1e-6
+    t = track[1:, 0][ok]
+    dt = dt[ok]
+    speed = np.hypot(np.diff(track[:, 1])[ok], np.diff(track[:, 2])[ok]) / dt
+    turn = np.abs(np.angle(np.exp(1j * np.diff(track[:, 3])[ok]))) / dt
+    # A sample judges the interval before it: both ends within the window.
+    inside = (t - dt >= start_s - 1e-9) & (t <= end_s + 1e-9)
+    for index in np.flatnonzero(inside):
+        if speed[index] >= REST_SPEED_M_S:
+            return float(t[index]), float(speed[index]), 'm/s'
+        if not turning_allowed and turn[index] >= REST_TURN_RAD_S:
+            return float(t[index]), float(turn[index]), 'rad/s'
+    return None
+
+
+def _said(chain_states: Sequence[Tuple[float, str, str]], says: Sequence[Tuple[str, str]],
+          start_s: float, end_s: float) -> Optional[Tuple[str, str]]:
+    """Return the first (node, state) within [start_s, end_s] that says one of says."""
+    for time_s, node, text in chain_states:
+        if start_s <= time_s <= end_s and any(
+                node == want and words in text for want, words in says):
+            return node, text
+    return None
+
+
+def _a_source_was_live(chain_states: Sequence[Tuple[float, str, str]], start_s: float,
+                       end_s: float) -> bool:
+    """Tell whether twist_mux had a live source at any time in [start_s, end_s]."""
+    state = chain_state_at(chain_states, 'twist_mux', start_s)
+    if state is not None and state != MUX_IDLE:
+        return True
+    return any(start_s <= time_s <= end_s and node == 'twist_mux' and text != MUX_IDLE
+               for time_s, node, text in chain_states)
