@@ -10,8 +10,8 @@ faults, per node); docs/failure_modes.md says the same in words. A scenario with
   ended, the robot is at rest on the ground truth: translation below
   :data:`REST_SPEED_M_S`, and unless turning on the spot is allowed (an unhealthy
   localisation lets the robot turn so that amcl updates) rotation below
-  :data:`REST_TURN_RAD_S`. An instant fault (a kill) is judged until ``stop_until_s``
-  after it (the respawn delay);
+  :data:`REST_TURN_RAD_S`. An instant fault is judged until ``stop_until_s`` after it
+  (a kill: the respawn delay; amcl diverged: :data:`AMCL_SPREAD_S`);
 - **says why** (``says``: (node, words) pairs): while the fault acts, a stage of the
   command chain states a stop, lock or hold naming it (its state topic: twist_mux's
   ``cmd_vel_mux_state``, ``collision_monitor_state``, ``zone_guard_state``), unless no
@@ -39,6 +39,10 @@ SAYS_GRACE_S = 0.5
 #: The respawn delay of the stack's nodes (launch files: respawn_delay 1.0 s of wall
 #: time; simulated time runs at real time at most while a process is down).
 RESPAWN_DELAY_S = 1.0
+
+#: amcl_diverged: how long its particles stay spread at the least (s): the robot
+#: translates not at all meanwhile (then it may, once amcl is healthy again).
+AMCL_SPREAD_S = 3.0
 
 CONTINUES = 'continues'
 SAFE = 'safe'
@@ -91,7 +95,7 @@ REACTIONS: Dict[str, Reaction] = {
                               '(or jumped: latched until /initialpose)', 1.5,
                               turning_allowed=True,
                               says=(('zone_guard', 'localisation unhealthy'),),
-                              mission=SAFE),
+                              mission=SAFE, stop_until_s=AMCL_SPREAD_S),
     'estop': Reaction('stops at once; stays stopped until the operator resets it', 0.6,
                       says=(('twist_mux', 'e_stop'),), mission=SAFE),
     **{f'node_frozen:{node}': Reaction(f'stops: {_WATCHDOG}; drives on once it resumes',
