@@ -3,9 +3,9 @@
 robot_controller and robot_simulation run as separate processes started by
 mecanum_bringup.launch_runner, in their own ROS domain, on simulated time that
 this test publishes on /clock. The minimal system has no command chain:
-minimal.launch.yaml remaps robot_controller's chain input cmd_vel_text to the kinematic
-simulation's cmd_vel, and robot_controller, seeing no chain output (cmd_vel_safe), does
-not watch it.
+robot_controller publishes cmd_vel, as in the seed tutorial, which the kinematic
+simulation takes, and robot_controller, seeing no chain output (cmd_vel_safe), does not
+watch it.
 """
 
 import math
@@ -41,7 +41,7 @@ def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_n
     deadline = time.monotonic() + 20
     while command_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.05)
-    # robot_controller's cmd_vel_text is remapped to cmd_vel (minimal.launch.yaml).
+    # robot_controller publishes the seed's cmd_vel (no chain input here).
     while time.monotonic() < deadline and not any(
             info.node_name == 'robot_controller'
             for info in node.get_publishers_info_by_topic('/cmd_vel')):

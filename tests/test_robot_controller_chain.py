@@ -40,7 +40,9 @@ def write_launch(directory):
             {'from': '$(find-pkg-share mecanum_control)/config/motor_params.yaml'},
             {'name': 'zone_file', 'value': str(zone_path)},
             {'name': 'chain_start_timeout_s', 'value': 2.0},
-            {'name': 'use_sim_time', 'value': True}]}}]}
+            {'name': 'use_sim_time', 'value': True}],
+        # As in every launch file with the chain: its text-command input.
+        'remap': [{'from': 'cmd_vel', 'to': 'cmd_vel_text'}]}}]}
     path = directory / 'robot_controller_chain.launch.yaml'
     path.write_text(yaml.safe_dump(launch, sort_keys=False))
     return path
@@ -220,7 +222,7 @@ def test_zone_refusal_and_stop_short(start_system, test_node, tmp_path):
 def test_a_motion_waits_for_a_subscriber_and_then_lasts_its_full_duration(
         start_system, test_node, tmp_path):
     """
-    With no chain watched and nobody subscribed to cmd_vel_text, a command is held.
+    With no chain watched and nobody subscribed to cmd_vel, a command is held.
 
     A base that DDS discovery finds late would otherwise miss the start of the motion
     (CI saw the minimal system strafe 0.20 m of a 0.3 m command). Once a subscriber
@@ -243,13 +245,13 @@ def test_a_motion_waits_for_a_subscriber_and_then_lasts_its_full_duration(
         time.sleep(0.05)
     command_pub.publish(String(data='strafe left 0.5 m at 0.25 m/s'))   # 2 s
     system.wait_for_line(r"Holding 'strafe left 0.5 m at 0.25 m/s' until something "
-                         r'subscribes to /cmd_vel_text')
+                         r'subscribes to /cmd_vel')
     # Held for more than the motion's duration: nothing is sent, it is not done.
     test_node.wait_sim(2.5)
     assert not any(m.data.startswith('done') for m in status.since(0.0))
 
     twist_times_ns = []
-    node.create_subscription(Twist, 'cmd_vel_text',
+    node.create_subscription(Twist, 'cmd_vel',
                              lambda msg: twist_times_ns.append((test_node.clock_ns, msg)), 10)
     status.wait_for(lambda m: m.data == 'done: strafe left', timeout=30.0)
     moving = [when for when, msg in twist_times_ns if msg.linear.y == 0.25]

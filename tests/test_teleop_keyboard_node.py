@@ -50,7 +50,7 @@ class CmdVelRecorder:
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = rclpy.create_node('teleop_test_recorder', context=self.context)
-        self.node.create_subscription(msg_type, 'cmd_vel_teleop', self._on_message, 100)
+        self.node.create_subscription(msg_type, 'cmd_vel', self._on_message, 100)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, daemon=True)

@@ -30,7 +30,7 @@ setup(
     maintainer='mecanum_robot maintainers',
     maintainer_email='maintainers@mecanum-robot.dev',
     description=(
-        'Text commands ("forward 0.5 m", "strafe left 2 s") to velocity commands on cmd_vel_text'),
+        'Text commands ("forward 0.5 m", "strafe left 2 s") to velocity commands on cmd_vel'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -1,11 +1,14 @@
 """
 teleop_keyboard: drive the robot from the keyboard, like teleop_twist_keyboard.
 
-Reads keys from the terminal (stdin in raw mode) and publishes ``cmd_vel_teleop``
+Reads keys from the terminal (stdin in raw mode) and publishes ``cmd_vel``
 (geometry_msgs/Twist, or TwistStamped with header.frame_id ``frame_id`` when
-``stamped``; base_link, m/s and rad/s) at once on every key. It is the teleop_keyboard
-input of the robot's command chain (mecanum_safety config/twist_mux.yaml: above
-navigation and text commands, then collision_monitor and zone_guard). The key bindings, the
+``stamped``; base_link, m/s and rad/s) at once on every key, as teleop_twist_keyboard
+does: run by hand it drives the seed's simulation_node, and beside the command chain it
+is the chain's ``external`` input. teleop.launch remaps it to ``cmd_vel_teleop``, the
+chain's teleop_keyboard input (mecanum_safety config/twist_mux.yaml: above navigation
+and text commands, then collision_monitor and zone_guard); by hand: ``--ros-args -r
+cmd_vel:=cmd_vel_teleop``. The key bindings, the
 holonomic (shift) mode included, are those of teleop_twist_keyboard; they live in
 :mod:`mecanum_control.teleop_keys`.
 
@@ -78,7 +81,7 @@ class TeleopKeyboard(Node):
         self._speed_lines = 0
 
         self.cmd_pub = self.create_publisher(
-            TwistStamped if self.stamped else Twist, 'cmd_vel_teleop', 10)
+            TwistStamped if self.stamped else Twist, 'cmd_vel', 10)
         # Key timing is wall time, also with use_sim_time: keys come from a person.
         self.timer = self.create_timer(self.repeat_period_s, self.on_timer,
                                        clock=Clock(clock_type=ClockType.STEADY_TIME))

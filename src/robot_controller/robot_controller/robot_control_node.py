@@ -1,11 +1,15 @@
 """
-robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel_text``.
+robot_control_node: text commands on ``control_command`` to velocity on ``cmd_vel``.
 
 Subscribes ``control_command`` (std_msgs/String), e.g. "forward 0.5 m",
 "strafe left 2 s", "rotate right 90 deg", "stop" (grammar in
-:mod:`robot_controller.command_parser`). Publishes ``cmd_vel_text``
-(geometry_msgs/Twist, base_link frame, m/s and rad/s), its input of the command chain
-(twist_mux -> collision_monitor -> zone_guard -> ``cmd_vel_safe`` -> motor_controller),
+:mod:`robot_controller.command_parser`). Publishes ``cmd_vel`` (geometry_msgs/Twist,
+base_link frame, m/s and rad/s), as in the seed tutorial: ``ros2 run robot_controller
+robot_control_node`` beside ``ros2 run robot_simulation simulation_node`` drives that
+simulation. Every launch file with the command chain remaps it to ``cmd_vel_text``, the
+chain's text-command input (twist_mux -> collision_monitor -> zone_guard ->
+``cmd_vel_safe`` -> motor_controller); run by hand beside a chain, its ``cmd_vel`` is the
+chain's ``external`` input, guarded all the same,
 at ``publish_rate_hz`` while a motion lasts, then one zero twist; and ``control_status``
 (std_msgs/String): ``accepted: <command>``, ``done: <motion>`` (finished, or
 ``done: stop``), ``interrupted: <motion>`` (replaced or stopped before its end),
@@ -20,7 +24,7 @@ reads 0 until the first /clock message arrives, which on a loaded machine can be
 after the node is up (DDS discovery). A command accepted before then waits, without
 moving the robot, and starts at the clock's first tick, so that it still lasts its full
 duration. Likewise, without a watched chain (below), a motion starts only once something
-subscribes to ``cmd_vel_text`` (a warning says so while it waits): a base found late by
+subscribes to its ``cmd_vel`` (a warning says so while it waits): a base found late by
 DDS discovery would otherwise miss the start of the motion.
 
 The authorised zone: with a zone file (``zone_file``), a command is checked before it
@@ -136,7 +140,7 @@ class RobotController(Node):
         self.accepted = False    # False while a motion waits for its zone check
         self.pose_deadline_s = None  # until when its zone check waits for a recent pose
 
-        self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel_text', 10)
+        self.cmd_vel_pub = self.create_publisher(Twist, 'cmd_vel', 10)
         self.status_pub = self.create_publisher(String, 'control_status', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.command_sub = self.create_subscription(
@@ -381,7 +385,7 @@ class RobotController(Node):
         self.report(status)
 
     def publish_twist(self, motion: Motion) -> None:
-        """Publish the motion's body twist on cmd_vel_text."""
+        """Publish the motion's body twist on cmd_vel (cmd_vel_text in a chain)."""
         twist = Twist()
         twist.linear.x = motion.vx
         twist.linear.y = motion.vy

@@ -1,0 +1,156 @@
+"""
+Integration: the seed tutorial's walk-through, as written, with this project's names.
+
+The second seed document builds a workspace (step 1: here `make setup`, already done for
+the tests), a robot_controller package with robot_control_node (step 2), a
+robot_simulation package with simulation_node (step 3), a Docker image (step 4:
+tests/test_docker.py) and runs the two nodes with `ros2 run` in two shells (step 5).
+Here step 5 runs as written, `./mecanum run` being the pip setup's `ros2 run` (the same
+executables from install/), each node in its own process in a leased ROS domain: a
+'forward' on control_command must move the simulated robot, whichever node starts
+first, and the keyboard teleop (the robot's usual `ros2 run` teleop) must reach that
+simulation too. The seed's topics: control_command (std_msgs/String) -> robot_controller
+-> cmd_vel (geometry_msgs/Twist) -> simulation_node -> robot_status (std_msgs/String
+"Position: x=.., y=.., theta=..").
+"""
+
+import os
+from pathlib import Path
+import re
+import signal
+import subprocess
+import threading
+import time
+
+import pytest
+from std_msgs.msg import String
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[1]
+POSITION = re.compile(r'Position: x=(-?\d+\.\d+), y=(-?\d+\.\d+), theta=(-?\d+\.\d+)')
+
+
+class RosRun:
+    """`./mecanum run PACKAGE EXECUTABLE` in a process group of its own (stdin: a pty)."""
+
+    def __init__(self, env, package, executable, *args):
+        """Start it; with a pseudo-terminal as stdin (teleop reads keys from it)."""
+        self.master, slave = os.openpty()
+        self.process = subprocess.Popen(
+            [str(REPO / 'mecanum'), 'run', package, executable, *args], stdin=slave,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+            cwd=str(REPO), start_new_session=True)
+        os.close(slave)
+        self.lines = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip('\n'))
+
+    def output(self) -> str:
+        """Return everything it printed so far."""
+        return '\n'.join(self.lines)
+
+    def wait_for_output(self, pattern: str, timeout: float = 30.0) -> None:
+        """Wait until a line matches pattern; fail with the output if it exits first."""
+        deadline = time.monotonic() + timeout
+        while not re.search(pattern, self.output()):
+            assert self.process.poll() is None, f'exited:\n{self.output()}'
+            assert time.monotonic() < deadline, f'no {pattern!r} in:\n{self.output()}'
+            time.sleep(0.02)
+
+    def type_keys(self, keys: str) -> None:
+        """Type keys on its terminal."""
+        os.write(self.master, keys.encode())
+
+    def stop(self) -> int:
+        """Ctrl-C, as in the shell; return the exit code."""
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGINT)
+            try:
+                self.process.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+        if self.master is not None:
+            os.close(self.master)
+            self.master = None
+        return self.process.returncode
+
+
+@pytest.fixture
+def ros_run(ros_env):
+    """Start `./mecanum run` processes in the test's domain; Ctrl-C them at the end."""
+    started = []
+
+    def run(*args) -> RosRun:
+        process = RosRun(ros_env, *args)
+        started.append(process)
+        return process
+    yield run
+    for process in started:
+        process.stop()
+
+
+def position(status) -> tuple:
+    """Return the (x, y, theta) of the newest robot_status, or None."""
+    latest = status.latest() if status.messages else None
+    match = POSITION.fullmatch(latest.data) if latest is not None else None
+    return tuple(float(v) for v in match.groups()) if match else None
+
+
+def publish_when_heard(test_node, publisher, text: str, timeout: float = 30.0) -> None:
+    """Publish text once something subscribes (`ros2 topic pub` waits likewise)."""
+    deadline = time.monotonic() + timeout
+    while publisher.get_subscription_count() == 0:
+        assert time.monotonic() < deadline, 'nothing subscribed to control_command'
+        time.sleep(0.02)
+    publisher.publish(String(data=text))
+
+
+@pytest.mark.parametrize('first', ['robot_controller', 'robot_simulation'])
+def test_step_5_the_two_run_commands_and_forward_move_the_robot(ros_run, test_node, first):
+    status = test_node.record(String, 'robot_status')
+    answers = test_node.record(String, 'control_status')
+    commands = test_node.node.create_publisher(String, 'control_command', 10)
+    controller = simulation = None
+    if first == 'robot_controller':
+        # 5.2 first; 'forward' comes before the simulation runs: held until it subscribes.
+        controller = ros_run('robot_controller', 'robot_control_node')
+        controller.wait_for_output(r'Robot controller ready')
+        publish_when_heard(test_node, commands, 'forward')
+        controller.wait_for_output(r"Holding 'forward' until something subscribes to "
+                                   r'/cmd_vel')
+        simulation = ros_run('robot_simulation', 'simulation_node')
+    else:
+        simulation = ros_run('robot_simulation', 'simulation_node')
+        simulation.wait_for_output(r'started')
+        controller = ros_run('robot_controller', 'robot_control_node')
+        publish_when_heard(test_node, commands, 'forward')
+    answers.wait_for(lambda m: m.data == 'accepted: forward', timeout=30)
+    answers.wait_for(lambda m: m.data == 'done: forward', timeout=30)
+    # 'forward' drives the default 2 s at 0.2 m/s (config/robot_controller.yaml): 0.4 m.
+    status.wait_for(lambda m: POSITION.fullmatch(m.data) is not None
+                    and float(POSITION.fullmatch(m.data).group(1)) > 0.35, timeout=15)
+    x, y, theta = position(status)
+    assert x == pytest.approx(0.4, abs=0.05) and y == 0.0 and theta == 0.0, (x, y, theta)
+    assert controller.stop() == 0 and simulation.stop() == 0
+
+
+def test_the_keyboard_teleop_reaches_the_seed_simulation(ros_run, test_node):
+    status = test_node.record(String, 'robot_status')
+    simulation = ros_run('robot_simulation', 'simulation_node')
+    simulation.wait_for_output(r'started')
+    teleop = ros_run('mecanum_control', 'teleop_keyboard')
+    teleop.wait_for_output(r'CTRL-C to quit')
+    # Hold 'i' (forward), as a held key repeats, until the simulated robot has moved.
+    deadline = time.monotonic() + 30
+    while (position(status) or (0.0,))[0] <= 0.1:
+        assert time.monotonic() < deadline, teleop.output()
+        teleop.type_keys('i')
+        time.sleep(0.05)
+    x, y, _ = position(status)
+    assert x > 0.1 and abs(y) < 1e-6
+    assert teleop.stop() == 0 and simulation.stop() == 0
