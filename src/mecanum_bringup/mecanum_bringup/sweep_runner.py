@@ -483,7 +483,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run a sweep file (see the module docstring); return the exit code."""
     parser = argparse.ArgumentParser(
         prog='run_sweep', description='Run every variant of a sweep file with the simulated '
-        'robot and report failure rates with 95 %% intervals.')
+        'robot and report failure rates with 95 % intervals.')
     parser.add_argument('sweep_file', help='the sweep file (YAML, see mecanum_bringup.sweep)')
     parser.add_argument('--out', help='results folder (default reports/sweeps/NAME); '
                         'run again with the same folder to resume')
@@ -539,7 +539,7 @@ def compare_main(argv: Optional[Sequence[str]] = None) -> int:
     from mecanum_bringup.sweep_store import read_rows
     parser = argparse.ArgumentParser(
         prog='compare_sweeps', description='Say which failure rates changed between two '
-        'sweeps beyond their 95 %% intervals (A: before, B: after), and which variants of '
+        'sweeps beyond their 95 % intervals (A: before, B: after), and which variants of '
         'both got another status.')
     parser.add_argument('before', help='results folder (or results.sqlite) of sweep A')
     parser.add_argument('after', help='results folder (or results.sqlite) of sweep B')

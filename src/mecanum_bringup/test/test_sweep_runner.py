@@ -1,5 +1,6 @@
 """Tests of the sweep runner's rows: what a finished variant stores (no robot is run)."""
 
+from mecanum_bringup import sweep_runner
 from mecanum_bringup.scenario_judge import ZoneResult
 from mecanum_bringup.scenario_model import CriterionResult, Verdict
 from mecanum_bringup.scenario_report import ScenarioResult
@@ -37,3 +38,12 @@ def test_a_variant_without_zone_line_or_verdict_stores_no_clearance():
     assert (error.status, error.verdict, error.criteria, error.error) == (
         'ERROR', None, {}, 'runner error: boom')
     assert error.min_zone_clearance_m is None
+
+
+@pytest.mark.parametrize('command', [sweep_runner.main, sweep_runner.compare_main])
+def test_the_help_says_95_percent_once(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        command(['--help'])
+    assert exit_info.value.code == 0
+    text = capsys.readouterr().out
+    assert '95 % intervals' in ' '.join(text.split()) and '%%' not in text
