@@ -304,9 +304,26 @@ def test_a_blocked_wheel_is_detected_and_stops_every_wheel(start_emulated):
         time.sleep(0.02)
     recent = efforts.since(start)
     assert len(recent) >= 10 and all(all(v == 0.0 for v in m.data) for m in recent)
-    # A zero target releases the wheel (it is retried on the next command).
+    # A zero target does not release it, nor does a new command: the latch holds (a
+    # retry would drive a robot with a dead encoder again) until the operator clears it.
     driver.drive()
-    system.wait_for_line(r'\[velocity_controller\].*Wheel FL released', timeout=5.0)
+    driver.drive(vx=0.3)
+    start = time.monotonic()
+    while len(efforts.since(start)) < 20 and time.monotonic() < start + 5.0:
+        time.sleep(0.02)
+    assert all(all(v == 0.0 for v in m.data) for m in efforts.since(start))
+    client = test_node.node.create_client(Trigger, '/velocity_controller/clear_wheel_faults')
+    assert client.wait_for_service(timeout_sec=10.0)
+    answer = test_node.call(client, Trigger.Request())
+    assert answer.success and answer.message == 'cleared: FL', answer
+    system.wait_for_line(r'\[velocity_controller\].*Wheel fault of FL cleared', timeout=5.0)
+    # Driven again, the blocked wheel trips again: nothing was fixed.
+    driver.drive(vx=0.3)
+    efforts.wait_for_new(lambda m: any(v != 0.0 for v in m.data), timeout=5.0)
+    deadline = time.monotonic() + 10.0
+    while system.output().count('Wheel FL stalled or its encoder') < 2:
+        assert time.monotonic() < deadline, system.output()[-3000:]
+        time.sleep(0.05)
 
 
 def test_the_board_stops_the_motors_by_itself_when_the_host_hangs(emulated):

@@ -11,8 +11,11 @@ Each wheel runs :class:`mecanum_control.pid.PidController` with the real time st
 (feedforward, anti-windup, output limit, derivative on measurement). A wheel whose
 effort stays high without motion (stalled, or its encoder disconnected) or while it
 turns against the effort (encoder wired reversed: positive feedback) is stopped by
-:class:`mecanum_control.pid.StallDetector` and reported until its target returns to
-zero. Stale targets (``target_timeout_s``) mean zero; stale measurements
+:class:`mecanum_control.pid.StallDetector`, with every other wheel (on three wheels a
+mecanum robot goes elsewhere than the command chain judged), and reported, until the
+operator calls ``~/clear_wheel_faults`` (std_srvs/Trigger) once the wheel is seen to: an
+automatic retry would drive a robot with a dead encoder again, at full effort, each
+time. Stale targets (``target_timeout_s``) mean zero; stale measurements
 (``measurement_timeout_s``) stop every wheel. Measured wheel speeds beyond
 ``PLAUSIBLE_SPEED_FACTOR`` x ``max_wheel_speed_rad_s`` are rejected as garbage (the
 message is ignored, so persistent garbage trips the measurement timeout), and a
@@ -47,6 +50,7 @@ from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
 
 WHEELS = ('FL', 'FR', 'RL', 'RR')
 
@@ -113,6 +117,8 @@ class VelocityController(Node):
                 (self.efforts_pub, 'motor_efforts_publishers', 2))]
         self.publisher_timer = start_publisher_checks(self, self.publisher_checks,
                                                       self.check_publishers)
+        self.clear_srv = self.create_service(Trigger, '~/clear_wheel_faults',
+                                             self.on_clear_wheel_faults)
         self.timer = self.create_timer(1.0 / control_rate_hz, self.on_control)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.get_logger().info(
@@ -204,6 +210,23 @@ class VelocityController(Node):
             if change == 'stop' and check.topic == self.efforts_pub.topic_name:
                 self._clear_stalls()
 
+    def on_clear_wheel_faults(self, request, response):
+        """Clear the latched wheel faults (std_srvs/Trigger): the wheels may drive again."""
+        latched = [w for w, stall in zip(WHEELS, self.stall_detectors) if stall.stalled]
+        for stall in self.stall_detectors:
+            stall.reset()
+        for pid in self.pids:
+            pid.reset()
+        self._reported.clear()
+        response.success = True
+        response.message = (f'cleared: {", ".join(latched)}' if latched
+                            else 'no wheel fault was latched')
+        if latched:
+            self.get_logger().warning(f'Wheel fault of {", ".join(latched)} cleared by a call '
+                                      f'of {self.clear_srv.srv_name}: driving again')
+        self.publish_diagnostics()
+        return response
+
     def _clear_stalls(self) -> None:
         """Forget stalls: hardware_interface may have held the board at zero already."""
         latched = [w for w, stall in zip(WHEELS, self.stall_detectors) if stall.stalled]
@@ -234,11 +257,10 @@ class VelocityController(Node):
                         problem = (f'Wheel {WHEELS[i]} stalled or its encoder is '
                                    'disconnected: high effort without motion')
                     self.get_logger().error(
-                        f'{problem}; wheel stopped until its target returns to 0')
+                        f'{problem}; every wheel stopped until you call '
+                        f'{self.clear_srv.srv_name} (std_srvs/srv/Trigger) once it is '
+                        'seen to')
                     self.publish_diagnostics()
-            elif WHEELS[i] in self._reported:
-                self._reported.discard(WHEELS[i])
-                self.get_logger().info(f'Wheel {WHEELS[i]} released after a zero target')
             efforts.append(effort)
         faulted = [w for w, stall in zip(WHEELS, self.stall_detectors) if stall.stalled]
         if faulted:
@@ -280,7 +302,8 @@ class VelocityController(Node):
             if reversed_:
                 parts.append('runs against its effort (encoder reversed?): '
                              f'{", ".join(reversed_)}')
-            status.message = '; '.join(parts)
+            status.message = '; '.join(parts) + (
+                f'; every wheel stopped until {self.clear_srv.srv_name}')
         else:
             status.level, status.message = DiagnosticStatus.OK, 'ok'
         status.values = [KeyValue(key=f'effort_{w}', value=f'{e:.3f}')

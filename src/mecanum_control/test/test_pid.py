@@ -329,19 +329,30 @@ def test_bad_dt_adds_no_time():
     assert detector.condition_time_s == 0.0
 
 
-def test_latch_holds_until_target_zero():
-    """Once stalled: stays so while the target is nonzero, clears on target 0, then retries."""
+def test_latch_holds_until_reset():
+    """Once stalled: stays so whatever the wheel and the target do, until reset."""
     detector = StallDetector(CONFIG)
     for _ in range(5):
         detector.update(0.9, 0.0, 3.0, 0.1)
     assert detector.stalled
     assert detector.update(0.0, 5.0, 3.0, 0.1)       # wheel spins freely: still latched
     assert detector.update(0.0, 0.0, -2.0, 0.1)      # another nonzero target: latched
-    assert not detector.update(0.0, 0.0, 0.0, 0.1)   # operator stop clears
+    assert detector.update(0.0, 0.0, 0.0, 0.1)       # a zero target does not release it
+    assert detector.stalled
+    detector.reset()                                 # the operator's clear
     assert not detector.stalled
     assert detector.condition_time_s == 0.0
     results = [detector.update(0.9, 0.0, 3.0, 0.1) for _ in range(5)]
     assert results == [False] * 4 + [True]           # a full time_s again
+
+
+def test_a_zero_target_restarts_the_count_before_the_latch():
+    detector = StallDetector(CONFIG)
+    for _ in range(4):
+        assert not detector.update(0.9, 0.0, 3.0, 0.1)
+    assert not detector.update(0.0, 0.0, 0.0, 0.1)
+    assert detector.condition_time_s == 0.0
+    assert [detector.update(0.9, 0.0, 3.0, 0.1) for _ in range(5)] == [False] * 4 + [True]
 
 
 def test_stall_reset_and_nan():
@@ -390,7 +401,8 @@ def test_wheel_against_its_effort_latches_wrong_direction(effort, measured, targ
     assert detector.stalled
     assert detector.fault == FAULT_WRONG_DIRECTION == 'wrong direction'
     assert detector.update(0.0, 0.0, target, 0.1)                # latched
-    assert not detector.update(0.0, measured, 0.0, 0.1)          # operator stop clears
+    assert detector.update(0.0, measured, 0.0, 0.1)              # a stop does not clear
+    detector.reset()                                             # the operator's clear
     assert detector.fault is None
 
 
