@@ -16,6 +16,9 @@ faults, per node); docs/failure_modes.md says the same in words. A scenario with
   command chain states a stop, lock or hold naming it (its state topic: twist_mux's
   ``cmd_vel_mux_state``, ``collision_monitor_state``, ``zone_guard_state``), unless no
   command source was live then (twist_mux said ``none`` throughout: nothing to stop);
+- **travel** (``max_travel_m``): the true robot goes at most that far while the fault
+  acts (a stop whose moment depends on how the robot is driven: a stuck encoder is
+  noticed only once its wheel has been driven for 0.5 s);
 - **mission** (:data:`CONTINUES`): the fault is ridden out or recovered from: every goal
   and waypoints step of the run was reached; (:data:`SAFE`): only the safety invariants
   (no collision, footprint in the zone), which are criteria of their own.
@@ -62,6 +65,9 @@ class Reaction:
     mission: str = CONTINUES
     #: For instants (kills): at rest until this long after the fault (s).
     stop_until_s: Optional[float] = None
+    #: The true robot travels at most this far (m) while the fault acts (a stop whose
+    #: moment depends on how the robot is driven: bounded by the distance instead).
+    max_travel_m: Optional[float] = None
 
 
 _LIDAR = 'collision_monitor'
@@ -81,8 +87,9 @@ REACTIONS: Dict[str, Reaction] = {
                                       (_LIDAR, 'scan stale'))),
     'imu_silent': Reaction('drives on with wheel odometry (the board reports IMU_FAULT)'),
     'imu_bias': Reaction('drives on; amcl corrects the heading in the map frame'),
-    'encoder_stuck': Reaction('every wheel stops once the stuck wheel is driven (stall '
-                              'check 0.5 s)', 1.5, mission=SAFE),
+    'encoder_stuck': Reaction('every wheel stops once the stuck wheel has been driven '
+                              'for 0.5 s (velocity_controller stall check), latched until '
+                              '~/clear_wheel_faults', mission=SAFE, max_travel_m=0.6),
     'wheel_slip': Reaction('drives on; amcl corrects the odometry from the scans'),
     'kidnap': Reaction('drives on; amcl relocalises from the scans as the robot moves'),
     'serial_bit_flips': Reaction('drives on: CRC-16 drops the bad frames'),
@@ -173,6 +180,14 @@ def judge_reaction(fault: Mapping[str, Any], truth: Any,
         else:
             found.append(f'at rest from +{reaction.stop_within_s:g} s'
                          + ('' if math.isinf(end) else f' to +{end - began:.1f} s'))
+    if reaction.max_travel_m is not None:
+        end = ended if ended is not None and ended > began else math.inf
+        travel = _travel_m(truth, began, end)
+        if travel > reaction.max_travel_m:
+            problems.append(f'travelled {travel:.2f} m while it acted (at most '
+                            f'{reaction.max_travel_m:g} m expected)')
+        else:
+            found.append(f'travelled {travel:.2f} m while it acted')
     if reaction.says:
         last = (ended if ended is not None and ended > began else
                 began + (reaction.stop_until_s or reaction.stop_within_s or 0.0))
@@ -211,6 +226,15 @@ def _first_motion(truth: Any, start_s: float, end_s: float,
         if not turning_allowed and turn[index] >= REST_TURN_RAD_S:
             return float(t[index]), float(turn[index]), 'rad/s'
     return None
+
+
+def _travel_m(truth: Any, start_s: float, end_s: float) -> float:
+    """Return the length (m) of the true path between start_s and end_s."""
+    track = np.asarray(truth, dtype=np.float64).reshape(-1, 4)
+    inside = track[(track[:, 0] >= start_s) & (track[:, 0] <= end_s)]
+    if len(inside) < 2:
+        return 0.0
+    return float(np.sum(np.hypot(np.diff(inside[:, 1]), np.diff(inside[:, 2]))))
 
 
 def _said(chain_states: Sequence[Tuple[float, str, str]], says: Sequence[Tuple[str, str]],

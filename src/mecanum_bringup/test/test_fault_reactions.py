@@ -163,3 +163,17 @@ scenario:
 """)
     with pytest.raises(ValueError, match='criteria.fault_reactions'):
         load_scenario(path)
+
+
+def test_a_stuck_encoder_is_judged_by_the_distance_travelled_while_it_acts():
+    stuck = {'kind': 'encoder_stuck', 'wheel': 'FL', 'onset_s': 1.0, 'duration_s': 2.0,
+             'began_s': 1.0, 'ended_s': 3.0}
+    # 0.5 m/s from 0 to 2 s: 0.5 m after the onset (1 .. 2 s), then at rest.
+    short = track([0.5] * 100 + [0.0] * 100)
+    result = judge_reaction(stuck, short, LIVE, goals_reached=False)
+    assert result.passed and result.detail == 'encoder_stuck: travelled 0.50 m while it acted'
+    # 0.5 m/s to 2.6 s: 0.8 m, more than 0.6 m.
+    far = track([0.5] * 130 + [0.0] * 70)
+    result = judge_reaction(stuck, far, LIVE, goals_reached=False)
+    assert not result.passed
+    assert 'travelled 0.80 m while it acted (at most 0.6 m expected)' in result.detail

@@ -196,16 +196,21 @@ class StallConfig:
     direction at velocity_threshold_rad_s or more, continuously for time_s seconds:
     either |measured| < velocity_threshold_rad_s (stalled, encoder disconnected) or
     the measured speed is opposite to the effort with |measured| >=
-    velocity_threshold_rad_s (wrong direction: encoder or motor wired reversed).
+    velocity_threshold_rad_s (wrong direction: encoder or motor wired reversed). Also
+    stalled: |target| >= target_threshold_rad_s while |measured| <
+    velocity_threshold_rad_s, whatever the effort (a dead encoder on a wheel driven
+    gently, where the effort stays below its threshold; the motor's lag is tens of ms).
     """
 
     effort_threshold: float = 0.6
     velocity_threshold_rad_s: float = 0.5
     time_s: float = 0.5
+    target_threshold_rad_s: float = 3.0
 
     def __post_init__(self) -> None:
         """Validate: thresholds finite and > 0, time_s finite and > 0."""
-        for name in ('effort_threshold', 'velocity_threshold_rad_s', 'time_s'):
+        for name in ('effort_threshold', 'velocity_threshold_rad_s', 'time_s',
+                     'target_threshold_rad_s'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f'StallConfig.{name} must be a finite number > 0, got {value!r}')
@@ -296,7 +301,10 @@ class StallDetector:
         cfg = self._config
         # Speed in the direction the effort pushes (effort != 0 past the threshold).
         following = math.copysign(1.0, effort) * measured
-        if abs(effort) >= cfg.effort_threshold and following < cfg.velocity_threshold_rad_s:
+        pushed = abs(effort) >= cfg.effort_threshold and following < cfg.velocity_threshold_rad_s
+        asked = (abs(target) >= cfg.target_threshold_rad_s
+                 and abs(measured) < cfg.velocity_threshold_rad_s)
+        if pushed or asked:
             if _valid_dt(dt_s):
                 self._condition_s += dt_s
                 if following <= -cfg.velocity_threshold_rad_s:

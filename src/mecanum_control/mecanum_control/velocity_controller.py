@@ -80,7 +80,8 @@ class VelocityController(Node):
         stall = StallConfig(
             effort_threshold=float(declare('stall_effort_threshold', 0.6).value),
             velocity_threshold_rad_s=float(declare('stall_velocity_threshold_rad_s', 0.5).value),
-            time_s=float(declare('stall_time_s', 0.5).value))
+            time_s=float(declare('stall_time_s', 0.5).value),
+            target_threshold_rad_s=float(declare('stall_target_threshold_rad_s', 3.0).value))
         control_rate_hz = positive('control_rate_hz', declare('control_rate_hz', 50.0).value)
         self.target_timeout_s = positive('target_timeout_s',
                                          declare('target_timeout_s', 0.5).value)

@@ -305,12 +305,12 @@ def test_stalls_after_time_s(dt, steps):
 
 
 def test_no_stall_when_wheel_moves_or_effort_low():
-    """High effort with motion, or low effort without motion, never stalls."""
+    """High effort with motion, or low effort without motion at a low target, never stalls."""
     moving = StallDetector(CONFIG)
     weak = StallDetector(CONFIG)
     for _ in range(100):
         assert not moving.update(1.0, 0.5, 3.0, 0.02)
-        assert not weak.update(0.59, 0.0, 3.0, 0.02)
+        assert not weak.update(0.59, 0.0, 2.9, 0.02)
 
 
 def test_interruption_restarts_the_count():
@@ -689,3 +689,14 @@ def test_integrator_freeze_removes_the_overshoot_of_a_delayed_measurement():
     with_freeze, without = peak(10.0), peak(math.inf)
     assert with_freeze < 5.0 * 1.3
     assert without > with_freeze + 1.5
+
+
+def test_a_wheel_asked_to_turn_that_does_not_latches_at_any_effort():
+    """|target| >= 3 rad/s with |speed| < 0.5 rad/s for 0.5 s: stalled, even at duty 0.3."""
+    detector = StallDetector(CONFIG)
+    assert [detector.update(0.3, 0.0, -5.0, 0.1) for _ in range(5)] == [False] * 4 + [True]
+    assert detector.fault == FAULT_STALLED
+    for target, measured in ((2.9, 0.0), (5.0, 0.6), (5.0, -0.6)):
+        gentle = StallDetector(CONFIG)
+        # Below the target threshold, or turning (either way): never.
+        assert not any(gentle.update(0.3, measured, target, 0.1) for _ in range(20))
