@@ -11,7 +11,8 @@ faults, per node); docs/failure_modes.md says the same in words. A scenario with
   :data:`REST_SPEED_M_S`, and unless turning on the spot is allowed (an unhealthy
   localisation lets the robot turn so that amcl updates) rotation below
   :data:`REST_TURN_RAD_S`. An instant fault is judged until ``stop_until_s`` after it
-  (a kill: the respawn delay; amcl diverged: :data:`AMCL_SPREAD_S`);
+  (a kill: the respawn delay; amcl diverged: :data:`AMCL_SPREAD_S`, or until the zone
+  guard states the localisation healthy again, if sooner);
 - **says why** (``says``: (node, words) pairs): while the fault acts, a stage of the
   command chain states a stop, lock or hold naming it (its state topic: twist_mux's
   ``cmd_vel_mux_state``, ``collision_monitor_state``, ``zone_guard_state``), unless no
@@ -43,8 +44,8 @@ SAYS_GRACE_S = 0.5
 #: time; simulated time runs at real time at most while a process is down).
 RESPAWN_DELAY_S = 1.0
 
-#: amcl_diverged: how long its particles stay spread at the least (s): the robot
-#: translates not at all meanwhile (then it may, once amcl is healthy again).
+#: amcl_diverged: the robot translates not at all for this long after the spread (s),
+#: or until the zone guard finds the localisation healthy again, if that comes sooner.
 AMCL_SPREAD_S = 3.0
 
 CONTINUES = 'continues'
@@ -65,6 +66,9 @@ class Reaction:
     mission: str = CONTINUES
     #: For instants (kills): at rest until this long after the fault (s).
     stop_until_s: Optional[float] = None
+    #: The stop may end early once this chain stage states health again (a state with
+    #: neither 'STOP' first nor 'unhealthy' in it, after the fault began).
+    healthy_again: Optional[str] = None
     #: The true robot travels at most this far (m) while the fault acts (a stop whose
     #: moment depends on how the robot is driven: bounded by the distance instead).
     max_travel_m: Optional[float] = None
@@ -102,7 +106,8 @@ REACTIONS: Dict[str, Reaction] = {
                               '(or jumped: latched until /initialpose)', 1.5,
                               turning_allowed=True,
                               says=(('zone_guard', 'localisation unhealthy'),),
-                              mission=SAFE, stop_until_s=AMCL_SPREAD_S),
+                              mission=SAFE, stop_until_s=AMCL_SPREAD_S,
+                              healthy_again='zone_guard'),
     'estop': Reaction('stops at once; stays stopped until the operator resets it', 0.6,
                       says=(('twist_mux', 'e_stop'),), mission=SAFE),
     **{f'node_frozen:{node}': Reaction(f'stops: {_WATCHDOG}; drives on once it resumes',
@@ -171,6 +176,8 @@ def judge_reaction(fault: Mapping[str, Any], truth: Any,
             end = began + reaction.stop_until_s
         else:
             end = ended if ended is not None else math.inf
+        if reaction.healthy_again is not None:
+            end = min(end, _healthy_again_s(chain_states, reaction.healthy_again, began))
         start = began + reaction.stop_within_s
         moving = _first_motion(truth, start, end, reaction.turning_allowed)
         if moving is not None:
@@ -226,6 +233,16 @@ def _first_motion(truth: Any, start_s: float, end_s: float,
         if not turning_allowed and turn[index] >= REST_TURN_RAD_S:
             return float(t[index]), float(turn[index]), 'rad/s'
     return None
+
+
+def _healthy_again_s(chain_states: Sequence[Tuple[float, str, str]], node: str,
+                     after_s: float) -> float:
+    """Return when node first stated health after after_s (inf: never)."""
+    for time_s, name, text in chain_states:
+        if (time_s > after_s and name == node and not text.startswith('STOP')
+                and 'unhealthy' not in text):
+            return time_s
+    return math.inf
 
 
 def _travel_m(truth: Any, start_s: float, end_s: float) -> float:

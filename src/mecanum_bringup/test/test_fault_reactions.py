@@ -177,3 +177,18 @@ def test_a_stuck_encoder_is_judged_by_the_distance_travelled_while_it_acts():
     result = judge_reaction(stuck, far, LIVE, goals_reached=False)
     assert not result.passed
     assert 'travelled 0.80 m while it acted (at most 0.6 m expected)' in result.detail
+
+
+def test_amcl_diverged_may_drive_once_the_guard_finds_it_healthy_again():
+    diverged = {'kind': 'amcl_diverged', 'onset_s': 1.0, 'duration_s': 0.0, 'began_s': 1.0,
+                'ended_s': 1.0, 'applied': True}
+    # At rest to 2.7 s, then driving: amcl converged at 2.6 s (+1.6 s), before the 3 s.
+    truth = track([0.0] * 135 + [0.3] * 65)
+    states = LIVE + [(1.1, 'zone_guard', 'STOP localisation unhealthy: position sigma 2.8 m'),
+                     (1.3, 'zone_guard', 'ALLOW turning on the spot (localisation unhealthy)'),
+                     (2.6, 'zone_guard', 'ALLOW')]
+    assert judge_reaction(diverged, truth, states, goals_reached=True).passed
+    # Still unhealthy when it drove: a failure.
+    unhealthy = states[:-1]
+    result = judge_reaction(diverged, truth, unhealthy, goals_reached=True)
+    assert not result.passed and 'moving at 0.30 m/s at t=2.72 s' in result.detail
