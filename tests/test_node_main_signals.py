@@ -5,7 +5,9 @@ A real node process (mecanum_control.node_main.run_node, rclpy's EventsExecutor)
 timer callback takes 0.3 s, so the signal lands inside a callback run by the C++
 executor: the node must finish that callback, run its close() and exit 0, without a
 traceback (a KeyboardInterrupt raised inside such a callback came out of spin_once as
-"RuntimeError: Unable to convert call argument").
+"RuntimeError: Unable to convert call argument"). A second SIGINT while the node closes
+(Ctrl-C in a terminal under ros2 launch: the terminal's, then launch's) does not cut the
+close short.
 """
 
 import signal
@@ -38,6 +40,8 @@ NODE = textwrap.dedent('''
             time.sleep(0.3)
 
         def close(self):
+            print('closing', flush=True)
+            time.sleep(float(sys.argv[1]) if len(sys.argv) > 1 else 0.0)
             print(f'closed after {self.calls} callbacks', flush=True)
 
 
@@ -63,3 +67,23 @@ def test_a_signal_during_a_callback_closes_the_node_cleanly(ros_env, tmp_path, s
     assert 'closed after' in stdout
     assert 'Traceback' not in stderr
     assert 'Exception in' not in stderr
+
+
+def test_a_second_ctrl_c_while_closing_does_not_cut_the_close_short(ros_env, tmp_path):
+    script = tmp_path / 'slow_node.py'
+    script.write_text(NODE)
+    process = subprocess.Popen([sys.executable, str(script), '0.5'], env=ros_env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'busy'
+        process.send_signal(signal.SIGINT)
+        assert process.stdout.readline().strip() == 'closing'
+        process.send_signal(signal.SIGINT)       # during the 0.5 s close
+        stdout, stderr = process.communicate(timeout=15)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    print(stdout, stderr)
+    assert process.returncode == 0
+    assert 'closed after' in stdout
+    assert 'Traceback' not in stderr

@@ -13,7 +13,12 @@ Steps, each skipped when its inputs did not change since the last run:
    such as tf2_msgs that PyPI lacks), built with colcon into
    ``.venv/ros_overlay``. An apt ROS install never sees it.
 4. The workspace ``src/`` built with ``colcon build --symlink-install``.
-5. The firmware tests' MicroPython (``firmware/package-lock.json``: the WebAssembly
+5. The ``ros2`` command and ``ros2 launch`` (ros2cli, launch and the packages they
+   need: tools/ros2_upstream.py), built from their pinned upstream Jazzy sources into
+   ``.venv/ros2cli``: from ``$MECANUM_ROS2_SOURCES``, a ``shared/vendor`` folder beside or
+   above the repository, or GitHub. Where none is reachable, set-up goes on and says
+   that ``ros2`` is missing and why (``./mecanum launch`` and ``./mecanum run`` work).
+6. The firmware tests' MicroPython (``firmware/package-lock.json``: the WebAssembly
    MicroPython 1.27 from npm), with ``npm ci`` when node and npm are installed;
    skipped with a message otherwise (those tests are then skipped too).
 
@@ -41,6 +46,7 @@ PY_TAG = f'py{sys.version_info[0]}{sys.version_info[1]}'
 LOCK_FILE = ROOT / 'requirements' / f'ros-jazzy-pip.{PY_TAG}.lock.txt'
 OVERLAY_SRC = ROOT / 'ros_pip_overlay'
 OVERLAY_PREFIX = VENV / 'ros_overlay'
+ROS2CLI_PREFIX = VENV / 'ros2cli'
 STAMP_DIR = VENV / '.mecanum_stamps'
 LOG_DIR = ROOT / 'log' / 'bootstrap'
 # Packaging tools the lock file does not cover. setuptools stays below 80, whose new
@@ -276,6 +282,41 @@ def ensure_workspace(force: bool) -> None:
     say(f'workspace built in {time.monotonic() - started:.0f} s')
 
 
+def ensure_ros2cli() -> None:
+    """Build the upstream ros2cli and launch packages into .venv/ros2cli (see step 5)."""
+    import ros2_upstream
+    pins = repr([(p.name, p.commit, p.tree_sha256) for p in ros2_upstream.PACKAGES])
+    digest = hashlib.sha256((pins + sys.version).encode()).hexdigest()
+    if read_stamp('ros2cli') == digest and (ROS2CLI_PREFIX / 'install').is_dir():
+        return
+    say('building the ros2 command and ros2 launch from their upstream Jazzy sources '
+        '(ros2cli, launch, launch_ros: tools/ros2_upstream.py)')
+    started = time.monotonic()
+    source = ROS2CLI_PREFIX / 'src'
+    shutil.rmtree(source, ignore_errors=True)
+    try:
+        fetched = ros2_upstream.fetch_sources(ROOT, ROS2CLI_PREFIX / 'downloads', source,
+                                              say=say)
+    except ros2_upstream.SourceError as error:
+        say(f'the ros2 command is missing: {error}. Everything else works (./mecanum '
+            f'launch, ./mecanum run). To get it, set {ros2_upstream.SOURCES_VARIABLE} to a '
+            'folder of the tarballs named in tools/ros2_upstream.py and run make setup '
+            'again.')
+        return
+    origins = sorted({str(Path(origin).parent) if '://' not in origin else 'GitHub'
+                      for _, origin in fetched})
+    shutil.rmtree(ROS2CLI_PREFIX / 'install', ignore_errors=True)
+    cmd = [str(VENV / 'bin' / 'colcon'), '--log-base', str(ROOT / 'log' / 'colcon'),
+           'build', '--merge-install', '--base-paths', str(source),
+           '--build-base', str(ROS2CLI_PREFIX / 'build'),
+           '--install-base', str(ROS2CLI_PREFIX / 'install'),
+           '--event-handlers', 'console_cohesion-', 'summary+']
+    run_logged(cmd, 'colcon-ros2cli', env=ros_env())
+    write_stamp('ros2cli', digest)
+    say(f'ros2 and ros2 launch built from {", ".join(origins)} in '
+        f'{time.monotonic() - started:.0f} s')
+
+
 def ensure_firmware_micropython() -> None:
     """Install the pinned WebAssembly MicroPython for the firmware tests (npm ci)."""
     firmware = ROOT / 'firmware'
@@ -310,6 +351,7 @@ def main() -> None:
         ensure_requirements()
         ensure_overlay()
         ensure_workspace(args.force)
+        ensure_ros2cli()
         ensure_firmware_micropython()
 
 

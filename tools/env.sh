@@ -25,6 +25,10 @@ export _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
 # shellcheck disable=SC1091
 [ -f "$VIRTUAL_ENV/ros_overlay/install/local_setup.bash" ] && \
   . "$VIRTUAL_ENV/ros_overlay/install/local_setup.bash"
+# The ros2 command and ros2 launch, built from upstream by make setup (if it could).
+# shellcheck disable=SC1091
+[ -f "$VIRTUAL_ENV/ros2cli/install/local_setup.bash" ] && \
+  . "$VIRTUAL_ENV/ros2cli/install/local_setup.bash"
 # shellcheck disable=SC1091
 . "$_mecanum_ws/install/local_setup.bash"
 # Secure by default: discover only nodes on this machine unless the user chose otherwise.

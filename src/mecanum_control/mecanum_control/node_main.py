@@ -429,6 +429,10 @@ def run_node(node_factory: Callable[[], Node], name: str,
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # Ctrl-C in a terminal under ros2 launch reaches each node twice (the terminal's
+        # SIGINT to the process group, then launch's own): the second must not cut the
+        # close short with a traceback. SIGTERM (launch's escalation) still interrupts.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         close_node(node)
         rclpy.try_shutdown()
     return 0

@@ -11,11 +11,12 @@ Parameters: ``update_rate_hz`` (50.0), ``status_rate_hz`` (10.0),
 The model (:mod:`robot_simulation.kinematic_model`) has no dynamics or slip.
 """
 
+import sys
+
 from geometry_msgs.msg import Twist
 from mecanum_control.messages import odometry_transform, planar_odometry
+from mecanum_control.node_main import run_node
 from nav_msgs.msg import Odometry
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from robot_simulation.kinematic_model import KinematicBase, Pose2D
 from std_msgs.msg import String
@@ -79,18 +80,10 @@ class RobotSimulation(Node):
             data=f'Position: x={pose.x:.2f}, y={pose.y:.2f}, theta={pose.yaw:.2f}'))
 
 
-def main(args=None):
-    """Run the simulation node until Ctrl-C."""
-    rclpy.init(args=args)
-    node = RobotSimulation()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+def main(args=None) -> int:
+    """Run the simulation node until Ctrl-C or SIGTERM (a second one while closing too)."""
+    return run_node(RobotSimulation, 'robot_simulation', args)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())
