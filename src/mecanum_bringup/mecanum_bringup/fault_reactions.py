@@ -11,8 +11,11 @@ faults, per node); docs/failure_modes.md says the same in words. A scenario with
   :data:`REST_SPEED_M_S`, and unless turning on the spot is allowed (an unhealthy
   localisation lets the robot turn so that amcl updates) rotation below
   :data:`REST_TURN_RAD_S`. An instant fault is judged until ``stop_until_s`` after it
-  (a kill: the respawn delay; amcl diverged: :data:`AMCL_SPREAD_S`, or until the zone
-  guard states the localisation healthy again, if sooner);
+  (amcl diverged: :data:`AMCL_SPREAD_S`, or until the zone guard states the
+  localisation healthy again, if sooner); after a kill, the robot must come to rest
+  within the delay at least once (the respawned node may drive it on at once). The
+  delays allow for the ramp to rest from the top
+  speed (:data:`RAMP_TO_REST_S`) after the stage that notices;
 - **says why** (``says``: (node, words) pairs): while the fault acts, a stage of the
   command chain states a stop, lock or hold naming it (its state topic: twist_mux's
   ``cmd_vel_mux_state``, ``collision_monitor_state``, ``zone_guard_state``), unless no
@@ -40,9 +43,11 @@ REST_SPEED_M_S = 0.02
 REST_TURN_RAD_S = 0.05
 #: A stage's statement counts from the fault's start to this long after its end (s).
 SAYS_GRACE_S = 0.5
-#: The respawn delay of the stack's nodes (launch files: respawn_delay 1.0 s of wall
-#: time; simulated time runs at real time at most while a process is down).
-RESPAWN_DELAY_S = 1.0
+#: From a zero command to rest at the top speed: 0.8 m/s at motor_controller's 1.5 m/s^2
+#: (motor_params.yaml) is 0.53 s, plus the motors' lag: 0.65 s.
+RAMP_TO_REST_S = 0.65
+#: A silent chain stage: motor_controller's cmd_timeout_s (0.25 s), then the ramp.
+WATCHDOG_STOP_S = 0.25 + RAMP_TO_REST_S
 
 #: amcl_diverged: the robot translates not at all for this long after the spread (s),
 #: or until the zone guard finds the localisation healthy again, if that comes sooner.
@@ -64,8 +69,12 @@ class Reaction:
     turning_allowed: bool = False
     says: Tuple[Tuple[str, str], ...] = ()
     mission: str = CONTINUES
-    #: For instants (kills): at rest until this long after the fault (s).
+    #: For instants: at rest until this long after the fault (s; None: until the end,
+    #: or until back_node is back).
     stop_until_s: Optional[float] = None
+    #: A kill: the robot comes to rest within stop_within_s at least once (the respawned
+    #: node may drive it on at once: its return is not seen in the states it publishes).
+    momentary: bool = False
     #: The stop may end early once this chain stage states health again (a state with
     #: neither 'STOP' first nor 'unhealthy' in it, after the fault began).
     healthy_again: Optional[str] = None
@@ -108,12 +117,13 @@ REACTIONS: Dict[str, Reaction] = {
                               says=(('zone_guard', 'localisation unhealthy'),),
                               mission=SAFE, stop_until_s=AMCL_SPREAD_S,
                               healthy_again='zone_guard'),
-    'estop': Reaction('stops at once; stays stopped until the operator resets it', 0.6,
+    'estop': Reaction('stops at once (ramped); stays stopped until the operator resets it',
+                      RAMP_TO_REST_S + 0.1,
                       says=(('twist_mux', 'e_stop'),), mission=SAFE),
     **{f'node_frozen:{node}': Reaction(f'stops: {_WATCHDOG}; drives on once it resumes',
-                                       0.6) for node in _CHAIN_NODES},
+                                       WATCHDOG_STOP_S + 0.1) for node in _CHAIN_NODES},
     **{f'node_killed:{node}': Reaction(f'stops: {_WATCHDOG}; drives on once respawned',
-                                       0.6, stop_until_s=RESPAWN_DELAY_S)
+                                       WATCHDOG_STOP_S + 0.1, momentary=True)
        for node in _CHAIN_NODES},
     'node_frozen:amcl': Reaction('stops: no pose (map -> odom older than 0.5 s); drives on '
                                  'once it resumes', 1.5, says=(('zone_guard', 'no pose'),)),
@@ -171,22 +181,10 @@ def judge_reaction(fault: Mapping[str, Any], truth: Any,
         return ReactionResult(False, f'{name}: not applied: {fault.get("outcome", "")}')
     problems: List[str] = []
     found: List[str] = []
-    if reaction.stop_within_s is not None:
-        if reaction.stop_until_s is not None:
-            end = began + reaction.stop_until_s
-        else:
-            end = ended if ended is not None else math.inf
-        if reaction.healthy_again is not None:
-            end = min(end, _healthy_again_s(chain_states, reaction.healthy_again, began))
-        start = began + reaction.stop_within_s
-        moving = _first_motion(truth, start, end, reaction.turning_allowed)
-        if moving is not None:
-            problems.append(f'moving at {moving[1]:.2f} {moving[2]} at t={moving[0]:.2f} s, '
-                            f'{moving[0] - began:.2f} s after it began (at rest expected '
-                            f'from {reaction.stop_within_s:g} s)')
-        else:
-            found.append(f'at rest from +{reaction.stop_within_s:g} s'
-                         + ('' if math.isinf(end) else f' to +{end - began:.1f} s'))
+    if reaction.stop_within_s is not None and reaction.momentary:
+        _judge_rest_once(reaction, truth, began, problems, found)
+    elif reaction.stop_within_s is not None:
+        _judge_rest_until(reaction, truth, chain_states, began, ended, problems, found)
     if reaction.max_travel_m is not None:
         end = ended if ended is not None and ended > began else math.inf
         travel = _travel_m(truth, began, end)
@@ -211,6 +209,40 @@ def judge_reaction(fault: Mapping[str, Any], truth: Any,
     if problems:
         return ReactionResult(False, f'{name}: ' + '; '.join(problems))
     return ReactionResult(True, f'{name}: ' + (', '.join(found) or reaction.does))
+
+
+def _judge_rest_once(reaction: Reaction, truth: Any, began: float, problems: List[str],
+                     found: List[str]) -> None:
+    """At rest at least once within stop_within_s after began (a kill)."""
+    rest = _first_rest_s(truth, began, reaction.turning_allowed)
+    if rest is None or rest > began + reaction.stop_within_s:
+        when = 'never' if rest is None else f'only {rest - began:.2f} s after'
+        problems.append(f'came to rest {when} (within {reaction.stop_within_s:g} s expected)')
+    else:
+        found.append(f'at rest {rest - began:.2f} s after')
+
+
+def _judge_rest_until(reaction: Reaction, truth: Any,
+                      chain_states: Sequence[Tuple[float, str, str]], began: float,
+                      ended: Optional[float], problems: List[str], found: List[str]) -> None:
+    """At rest from stop_within_s after began until the fault ended (or as the kind says)."""
+    if reaction.stop_until_s is not None:
+        end = began + reaction.stop_until_s
+    elif ended is not None and ended > began:
+        end = ended
+    else:
+        end = math.inf
+    if reaction.healthy_again is not None:
+        end = min(end, _healthy_again_s(chain_states, reaction.healthy_again, began))
+    moving = _first_motion(truth, began + reaction.stop_within_s, end,
+                           reaction.turning_allowed)
+    if moving is not None:
+        problems.append(f'moving at {moving[1]:.2f} {moving[2]} at t={moving[0]:.2f} s, '
+                        f'{moving[0] - began:.2f} s after it began (at rest expected '
+                        f'from {reaction.stop_within_s:g} s)')
+    else:
+        found.append(f'at rest from +{reaction.stop_within_s:g} s'
+                     + ('' if math.isinf(end) else f' to +{end - began:.1f} s'))
 
 
 def _first_motion(truth: Any, start_s: float, end_s: float,
@@ -243,6 +275,23 @@ def _healthy_again_s(chain_states: Sequence[Tuple[float, str, str]], node: str,
                 and 'unhealthy' not in text):
             return time_s
     return math.inf
+
+
+def _first_rest_s(truth: Any, after_s: float, turning_allowed: bool) -> Optional[float]:
+    """Return the end time of the first interval at rest after after_s, or None."""
+    track = np.asarray(truth, dtype=np.float64).reshape(-1, 4)
+    track = track[track[:, 0] >= after_s - 1e-9]
+    if len(track) < 2:
+        return None
+    dt = np.diff(track[:, 0])
+    ok = dt > 1e-6
+    speed = np.hypot(np.diff(track[:, 1])[ok], np.diff(track[:, 2])[ok]) / dt[ok]
+    turn = np.abs(np.angle(np.exp(1j * np.diff(track[:, 3])[ok]))) / dt[ok]
+    rest = speed < REST_SPEED_M_S
+    if not turning_allowed:
+        rest &= turn < REST_TURN_RAD_S
+    index = np.flatnonzero(rest)
+    return float(track[1:, 0][ok][index[0]]) if len(index) else None
 
 
 def _travel_m(truth: Any, start_s: float, end_s: float) -> float:

@@ -34,7 +34,8 @@ def test_every_fault_kind_has_an_expected_reaction():
         reaction = reaction_for({'kind': kind, 'node': 'some_node'})
         assert reaction.mission in (CONTINUES, SAFE)
         assert reaction.does
-    assert reaction_for({'kind': 'node_killed', 'node': 'twist_mux'}).stop_within_s == 0.6
+    assert reaction_for({'kind': 'node_killed', 'node': 'twist_mux'}).stop_within_s == \
+        pytest.approx(0.25 + 0.65 + 0.1)
     assert reaction_for({'kind': 'node_killed', 'node': 'planner'}) is \
         REACTIONS['node_killed:*']
 
@@ -108,14 +109,21 @@ def test_a_fault_that_never_acted_fails():
         'kidnap: not applied: refused: in a wall'
 
 
-def test_a_kill_is_judged_until_the_respawn_delay():
-    # twist_mux killed at 1 s: at rest from 1.6 s to 2.0 s, then the respawned one drives.
-    truth = track([0.5] * 75 + [0.0] * 25 + [0.5] * 100)
+def test_a_kill_wants_the_robot_at_rest_once_within_the_delay():
+    # twist_mux killed at 1 s: at rest in the interval ending at 1.92 s (0.92 s after,
+    # within the 1 s), then the respawned one drives it on.
     killed = {'kind': 'node_killed', 'node': 'twist_mux', 'onset_s': 1.0, 'duration_s': 0.0,
               'began_s': 1.0, 'ended_s': 1.0}
+    truth = track([0.5] * 95 + [0.0] * 2 + [0.5] * 103)
     result = judge_reaction(killed, truth, LIVE, goals_reached=True)
     assert result.passed, result.detail
-    assert result.detail.startswith('node_killed twist_mux: at rest from +0.6 s to +1.0 s')
+    assert result.detail == 'node_killed twist_mux: at rest 0.92 s after, goals reached'
+    # At rest only 1.20 s after: too late; never: fails too.
+    late = track([0.5] * 109 + [0.0] * 2 + [0.5] * 89)
+    result = judge_reaction(killed, late, LIVE, goals_reached=True)
+    assert not result.passed and 'came to rest only 1.20 s after' in result.detail
+    never = track([0.5] * 200)
+    assert 'came to rest never' in judge_reaction(killed, never, LIVE, True).detail
 
 
 def test_the_verdict_has_a_fault_reaction_line(tmp_path):
