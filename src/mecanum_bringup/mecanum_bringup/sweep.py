@@ -54,6 +54,7 @@ like any scenario file (a spawn in a wall is an error naming the variant).
 
 import copy
 from dataclasses import dataclass, field
+import hashlib
 import itertools
 import json
 import math
@@ -376,6 +377,62 @@ def _goal_count(document: Dict[str, Any]) -> int:
     """Return the number of goal steps of a scenario document."""
     return sum(1 for step in document['scenario'].get('steps') or []
                if isinstance(step, dict) and 'goal' in step)
+
+
+def input_files(sweep: Sweep) -> Dict[str, Path]:
+    """
+    Return the files the sweep's variants read: {absolute path: path}.
+
+    The sweep file, each scenario file, the world file and map (YAML and image) each
+    scenario uses, and the worlds of a world axis. A variant's verdict depends on their
+    contents, not their names: a results store keeps their digests (input_digests) and
+    refuses to resume when one changed.
+    """
+    from mecanum_bringup.scenario_loader import load_scenario
+    from mecanum_map_server.map_io import find_map_file, MapError
+    from robot_simulation.world import find_world, WorldError
+    files: Dict[str, Path] = {}
+
+    def add(path: Path) -> None:
+        path = Path(path).resolve()
+        files[str(path)] = path
+
+    add(sweep.source)
+    scenario_files = ([path for path, _ in sweep.scenarios.values()] if sweep.scenarios
+                      else [sweep.scenario_file])
+    for path in scenario_files:
+        add(path)
+        scenario = load_scenario(path)
+        add(scenario.world_file)
+        try:
+            map_file = find_map_file(scenario.map_name)
+        except MapError:
+            continue
+        add(map_file)
+        try:
+            image = yaml.safe_load(map_file.read_text(encoding='utf-8')).get('image')
+        except (OSError, yaml.YAMLError, AttributeError):
+            image = None
+        if isinstance(image, str):
+            add(map_file.parent / image)
+    for value in sweep.axes.get('world', []) if isinstance(sweep.axes.get('world'), list) \
+            else []:
+        try:
+            add(find_world(str(value)))
+        except WorldError:
+            pass
+    return files
+
+
+def input_digests(sweep: Sweep) -> Dict[str, str]:
+    """Return {absolute path: SHA-256 of its bytes ('missing' if gone)} of input_files."""
+    digests = {}
+    for name, path in input_files(sweep).items():
+        try:
+            digests[name] = hashlib.sha256(path.read_bytes()).hexdigest()
+        except OSError:
+            digests[name] = 'missing'
+    return digests
 
 
 def _world_of(path: Path, document: Dict[str, Any]) -> str:

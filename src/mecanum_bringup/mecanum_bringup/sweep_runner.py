@@ -54,7 +54,7 @@ from mecanum_bringup.scenario_runner import (
     interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, run_scenario,
     RunOptions, stopping_cleanly_on_signals)
 from mecanum_bringup.sweep import (
-    load_sweep, Sweep, SweepError, Variant, variant_documents, variants)
+    input_digests, load_sweep, Sweep, SweepError, Variant, variant_documents, variants)
 from mecanum_bringup.sweep_store import ResultsStore, StoreError, VariantRow
 import yaml
 
@@ -432,8 +432,11 @@ def run_sweep(sweep: Sweep, out_dir: Path, jobs: int = 1, ray_address: Optional[
     """
     options = dict(options or {'real_time_factor': 0.0, 'record': False, 'lockstep': True})
     out_dir.mkdir(parents=True, exist_ok=True)
-    prepared = prepare(sweep, out_dir / 'runs')
-    with ResultsStore(out_dir / 'results.sqlite', sweep.name, sweep.fingerprint) as store:
+    # The store first: one of another sweep, or of edited inputs, is refused before any
+    # of its runs' documents is written over.
+    with ResultsStore(out_dir / 'results.sqlite', sweep.name, sweep.fingerprint,
+                      input_digests(sweep)) as store:
+        prepared = prepare(sweep, out_dir / 'runs')
         done_before = store.done_indices()
         todo = [item for item in prepared if item.variant.index not in done_before]
         say(f'{sweep.name}: {len(prepared)} variants, {len(done_before)} done before, '

@@ -3,12 +3,15 @@ The results store of a sweep: one SQLite row per finished variant (pure, no ROS)
 
 A sweep writes each variant's row the moment it finishes, in its own transaction, so a
 sweep that is killed keeps every finished run and, started again, runs only the others.
-The store also keeps what fixes the variants (the sweep's fingerprint): a store made by
-another sweep file, or by this one after its axes changed, is refused rather than mixed.
+The store also keeps what fixes the variants (the sweep's fingerprint) and the digests
+of the files they read (the sweep, scenario, world and map files:
+mecanum_bringup.sweep.input_digests): a store made by another sweep file, by this one
+after its axes changed, or before one of those files was edited, is refused rather than
+mixed, naming what changed.
 
 Tables::
 
-    sweep(key TEXT PRIMARY KEY, value TEXT)      -- name, fingerprint, created_at
+    sweep(key TEXT PRIMARY KEY, value TEXT)      -- name, fingerprint, inputs, created_at
     variants(idx INTEGER PRIMARY KEY, name TEXT, values_json TEXT, status TEXT,
              verdict TEXT, expected TEXT, criteria_json TEXT, first_failure TEXT,
              sim_time_s REAL, wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT,
@@ -70,11 +73,25 @@ _COLUMNS = ('idx', 'name', 'values_json', 'status', 'verdict', 'expected', 'crit
 _ADDED_COLUMNS = {'min_zone_clearance_m': 'REAL'}
 
 
+def _change(name: str, before: Dict[str, str], now: Dict[str, str]) -> str:
+    """Return how an input file changed: 'new', 'no longer read' or 'edited'."""
+    if name not in before:
+        return 'new'
+    return 'no longer read' if name not in now else 'edited'
+
+
 class ResultsStore:
     """A sweep's SQLite store; rows are written one transaction each (WAL journal)."""
 
-    def __init__(self, path: PathLike, sweep_name: str, fingerprint: str):
-        """Open (or create) the store; raise StoreError if it belongs to another sweep."""
+    def __init__(self, path: PathLike, sweep_name: str, fingerprint: str,
+                 inputs: Optional[Dict[str, str]] = None):
+        """
+        Open (or create) the store; raise StoreError if it belongs to another sweep.
+
+        inputs: {file: digest} of the files the variants read; a store whose recorded
+        inputs differ is refused, naming the files (a store without them is accepted).
+        """
+        stored_inputs: Optional[Dict[str, str]] = None
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         try:
@@ -94,8 +111,12 @@ class ResultsStore:
                 if not meta:
                     self._db.executemany('INSERT INTO sweep VALUES (?, ?)', [
                         ('schema', SCHEMA_VERSION), ('name', sweep_name),
-                        ('fingerprint', fingerprint), ('created_at', repr(time.time()))])
+                        ('fingerprint', fingerprint), ('created_at', repr(time.time()))]
+                        + ([('inputs', json.dumps(inputs, sort_keys=True))]
+                           if inputs is not None else []))
                     meta = {'name': sweep_name, 'fingerprint': fingerprint}
+                elif 'inputs' in meta:
+                    stored_inputs = json.loads(meta['inputs'])
         except sqlite3.DatabaseError as error:
             raise StoreError(f'{self.path}: not a sweep results store ({error})') from None
         if meta.get('name') != sweep_name or meta.get('fingerprint') != fingerprint:
@@ -104,6 +125,15 @@ class ResultsStore:
                 f'{self.path} holds the results of another sweep ({meta.get("name")!r}, or '
                 'the same sweep with other axes, samples or seed): give this sweep another '
                 '--out folder, or delete the store to start again')
+        if inputs is not None and stored_inputs is not None and stored_inputs != inputs:
+            self._db.close()
+            changed = sorted(name for name in set(stored_inputs) | set(inputs)
+                             if stored_inputs.get(name) != inputs.get(name))
+            words = [f'{name} ({_change(name, stored_inputs, inputs)})' for name in changed]
+            raise StoreError(
+                f'{self.path}: the files this sweep reads changed since its results were '
+                f'stored: {", ".join(words)}; its stored verdicts may no longer hold: give '
+                'this sweep another --out folder, or delete the store to run them again')
         try:   # a store from before a column was added gets it (NULL in the old rows)
             with self._db:
                 present = _column_names(self._db)

@@ -261,3 +261,34 @@ def test_a_bad_local_ray_cluster_size_is_refused_before_anything_runs(tmp_path, 
         main([str(tmp_path / 'never_read.yaml'), '--ray', address])
     assert stopped.value.code == 2
     assert f"--ray local:N needs N from 1 to 99 nodes, got '{address}'" in capsys.readouterr().err
+
+
+def test_a_store_is_refused_once_a_file_its_variants_read_was_edited(folder, capsys):
+    # A trap found by trying it: an edited scenario resumed from the old store gave
+    # '4 variants, 4 done before, 0 to run' and the old verdicts.
+    from mecanum_bringup.sweep import input_digests, input_files
+    from mecanum_bringup.sweep_runner import main
+    path = sweep_file(folder, 'seed: [1, 2]\n')
+    sweep = load_sweep(path)
+    files = input_files(sweep)
+    scenario = str((folder / 'three_goals.yaml').resolve())
+    world = str(load_scenario(folder / 'three_goals.yaml').world_file.resolve())
+    assert {str(path.resolve()), scenario, world} <= set(files)
+    assert any(name.endswith('apartment.yaml') and 'maps' in name for name in files)
+    assert any(name.endswith('.pgm') for name in files)      # the map's image
+    store_path = folder / 'out' / 'results.sqlite'
+    with ResultsStore(store_path, sweep.name, sweep.fingerprint, input_digests(sweep)):
+        pass
+    # The same inputs: accepted.
+    with ResultsStore(store_path, sweep.name, sweep.fingerprint, input_digests(sweep)):
+        pass
+    # The scenario edited (same name, same axes): refused, naming it.
+    (folder / 'three_goals.yaml').write_text(
+        (folder / 'three_goals.yaml').read_text().replace('x: 8.0', 'x: 7.5'))
+    with pytest.raises(StoreError, match=rf'changed since .*{scenario} \(edited\)'):
+        ResultsStore(store_path, sweep.name, sweep.fingerprint, input_digests(sweep))
+    # And run_sweep says so and runs nothing (exit code 2).
+    assert main([str(path), '--out', str(folder / 'out'), '--quiet']) == 2
+    err = capsys.readouterr().err
+    assert 'three_goals.yaml (edited)' in err and 'delete the store' in err
+    assert not (folder / 'out' / 'runs').exists()
