@@ -528,3 +528,16 @@ def test_obstacle_marks_roll_with_the_window_and_layers_run_in_order():
     assert (costmap.costs == LETHAL).sum() == 1
     with pytest.raises(ValueError, match=r'layers\[0\]'):
         LayeredCostmap(costmap, [object()])
+
+
+def test_the_clearance_to_lethal_cells_is_to_their_squares():
+    """A lethal cell (1, 2) at 1 m cells is the square x 2..3, y 1..2."""
+    costmap = Costmap2D(8, 4, 1.0)
+    costmap.costs[1, 2] = LETHAL_OBSTACLE
+    assert costmap.lethal_clearance_m(0.5, 1.5, 3.0) == pytest.approx(1.5)    # left of it
+    assert costmap.lethal_clearance_m(2.5, 3.5, 3.0) == pytest.approx(1.5)    # above it
+    assert costmap.lethal_clearance_m(0.5, 0.5, 3.0) == pytest.approx(math.hypot(1.5, 0.5))
+    assert costmap.lethal_clearance_m(2.5, 1.5, 3.0) == 0.0                   # inside it
+    # Out of reach (0.5 m, and the cells around): not looked at.
+    assert costmap.lethal_clearance_m(7.9, 3.9, 0.5) == math.inf
+    assert Costmap2D(3, 3, 1.0).lethal_clearance_m(1.0, 1.0, 5.0) == math.inf

@@ -326,6 +326,12 @@ def test_config_keeps_a_half_metre_gap_open_and_closes_0_4_m():
     ((1.85, 1.0, 0.0), nav.GOAL_IN_OBSTACLE, 'too close to an obstacle'),
     # Cell centre 1.825: exactly 0.2 m: still inscribed.
     ((1.80, 1.0, 0.0), nav.GOAL_IN_OBSTACLE, 'inscribed cell'),
+    # Diagonally off the wall's top corner (square x 2.00.., y ..1.80): 0.13 m each way,
+    # 0.18 m from it, while the cell centres are 0.21 m apart (cost 252, not inscribed).
+    # The live apartment accepted (2.0, 5.0), 0.15 m from a wall, likewise.
+    ((1.87, 1.93, 0.0), nav.GOAL_IN_OBSTACLE,
+     r'goal \(1.87, 1.93\) is 0.18 m from an obstacle: the footprint \(radius 0.2 m\) '
+     'cannot be there'),
     ((3.4, 1.9, 0.0), nav.NO_VALID_PATH, r'no valid path to goal \(3.40, 1.90\).*not reachable'),
 ])
 def test_bad_goals_fail_before_moving(goal, code, message):
@@ -341,13 +347,14 @@ def test_bad_goals_fail_before_moving(goal, code, message):
     assert world.tick().twist is None   # idle: nothing commanded
 
 
-def test_a_goal_just_outside_the_inscribed_ring_is_accepted():
-    """Cell centre 1.775 is 0.25 m from the wall: free, so the goal is planned to."""
+@pytest.mark.parametrize('goal', [(1.75, 1.0), (1.85, 1.95)])
+def test_a_goal_just_outside_the_inscribed_ring_is_accepted(goal):
+    """0.25 m from the wall, or 0.21 m off its corner: the footprint fits; planned to."""
     world = World(params=NavigatorParams(authorised_zone=ZONE))
-    world.navigator.submit('g', (1.75, 1.0, 0.0))
+    world.navigator.submit('g', (*goal, 0.0))
     out = world.tick()
     assert out.outcomes == []
-    assert out.new_plan is not None and out.new_plan[-1] == pytest.approx((1.75, 1.0))
+    assert out.new_plan is not None and out.new_plan[-1] == pytest.approx(goal)
     assert world.navigator.state == nav.FOLLOWING
 
 

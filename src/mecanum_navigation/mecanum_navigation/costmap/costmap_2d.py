@@ -135,6 +135,33 @@ class Costmap2D:
         return (self.origin_x_m + (col + 0.5) * self.resolution_m,
                 self.origin_y_m + (row + 0.5) * self.resolution_m)
 
+    def lethal_clearance_m(self, x: float, y: float, reach_m: float) -> float:
+        """
+        Return the distance (m) from (x, y) to the nearest LETHAL cell's square, or inf.
+
+        Only cells within reach_m (plus a cell) are looked at. A cell's square, not its
+        centre: a map marks a cell whose centre lies in an obstacle, so the square is
+        within half a cell of the obstacle's face, and the distance to it within half a
+        cell of the true clearance (the inflation's cell-centre distances can be a cell
+        more optimistic).
+        """
+        _check_finite('x', x)
+        _check_finite('y', y)
+        res = self.resolution_m
+        span = int(math.ceil(reach_m / res)) + 1
+        col0 = math.floor((x - self.origin_x_m) / res)
+        row0 = math.floor((y - self.origin_y_m) / res)
+        rows = slice(max(row0 - span, 0), max(min(row0 + span + 1, self.size_y), 0))
+        cols = slice(max(col0 - span, 0), max(min(col0 + span + 1, self.size_x), 0))
+        lethal_rows, lethal_cols = np.nonzero(self.costs[rows, cols] == LETHAL_OBSTACLE)
+        if len(lethal_rows) == 0:
+            return math.inf
+        left = self.origin_x_m + (lethal_cols + cols.start) * res
+        bottom = self.origin_y_m + (lethal_rows + rows.start) * res
+        dx = np.maximum(np.maximum(left - x, x - (left + res)), 0.0)
+        dy = np.maximum(np.maximum(bottom - y, y - (bottom + res)), 0.0)
+        return float(np.min(np.hypot(dx, dy)))
+
     def world_to_grid(self, xs: np.ndarray, ys: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Return continuous cell coordinates (x along columns) of world points (m)."""
         return ((np.asarray(xs, dtype=np.float64) - self.origin_x_m) / self.resolution_m,

@@ -20,8 +20,10 @@ default behaviour tree ("navigate w/ replanning and recovery"):
   map frame; None = no zone), or so near its border that the footprint
   (``robot_radius_m``) would cross it -> GOAL_OUTSIDE_ZONE; goal cell lethal (254,
   also keepout zones) or inscribed (253, the footprint would touch an obstacle) on the
-  map's costmap -> GOAL_IN_OBSTACLE (GOAL_OUTSIDE_ZONE when only the zone makes it
-  so: a goal a few cm beyond the exact check, on the costmap's cells); no plan on the
+  map's costmap, or the footprint nearer than its radius to a lethal cell's square
+  (one rule for what cannot be occupied) -> GOAL_IN_OBSTACLE (GOAL_OUTSIDE_ZONE when
+  only the zone makes it so: a goal a few cm beyond the exact check, on the costmap's
+  cells); no plan on the
   global costmap nor on the map's -> NO_VALID_PATH (the planner's reason, e.g.
   unknown space or unreachable), except that with a zone a plan is then tried once on
   the map's costmap without the zone (TickInputs.unzoned_costmap): when that one
@@ -438,6 +440,15 @@ class Navigator:
         if cost == INSCRIBED_INFLATED_OBSTACLE:
             return GOAL_IN_OBSTACLE, (f'goal {where} is too close to an obstacle: the '
                                       f'footprint would touch it (inscribed cell)'), None
+        # The inflation measures between cell centres; the footprint against the lethal
+        # cells' squares is the one rule (a goal 0.15 m from a wall passed the cells).
+        obstacles = unzoned if (unzoned is not None and unzoned.same_geometry(costmap)) \
+            else costmap
+        clearance = obstacles.lethal_clearance_m(x, y, radius)
+        if clearance < radius:
+            return GOAL_IN_OBSTACLE, (
+                f'goal {where} is {clearance:.2f} m from an obstacle: the footprint (radius '
+                f'{radius:g} m) cannot be there'), None
         try:
             points = self._plan_steered(inputs, (x, y))
         except PlanningError as error:
