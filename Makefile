@@ -14,7 +14,8 @@ setup:
 # The simulated robot tours the apartment (12 goals), then writes reports/demo_<time>/:
 # run.png, summary.json, an MCAP bag of every topic. DEMO_ARGS: e.g. --foxglove.
 DEMO_ARGS ?=
-demo: setup
+demo:
+	@$(PYTHON) tools/bootstrap.py --no-firmware-tests
 	@./mecanum run mecanum_bringup demo $(DEMO_ARGS)
 
 # Every scenario file of mecanum_bringup, headless: a pass/fail table, JUnit XML.

@@ -5,7 +5,8 @@ The robot's Raspberry Pi runs ``ros2 launch`` from an apt ROS 2 Jazzy install; t
 setup has no ``launch`` package and runs the same ``.launch.yaml`` files with
 mecanum_bringup's launch_runner, which once accepted what the real launch rejects (a
 quoted ``respawn_delay``, ``use_sim_time`` passed as the string 'true'). So these tests
-build the upstream Jazzy launch, launch_yaml, launch_xml and launch_ros (the sources in
+use the upstream Jazzy launch, launch_yaml, launch_xml and launch_ros that make setup
+built (tools/ros2_upstream.py), or, without them, build them (the sources in
 ``shared/vendor`` beside the repository or in a folder above it, or
 ``$MECANUM_LAUNCH_VENDOR``; the tests skip, saying so, where they are absent) into a
 prefix under build/ with colcon, and run each launch file
@@ -22,6 +23,7 @@ arguments, in a ROS domain of its own:
 
 import fcntl
 import hashlib
+import importlib.util
 import os
 from pathlib import Path
 import re
@@ -101,7 +103,16 @@ def build_real_launch() -> Path:
 
 @pytest.fixture(scope='module')
 def real_launch_env():
-    """Return os.environ with the real launch packages on PYTHONPATH and the ament index."""
+    """
+    Return os.environ with the real launch packages on PYTHONPATH and the ament index.
+
+    make setup builds them into .venv/ros2cli (tools/ros2_upstream.py), which the
+    environment has on its paths (tools/env.sh): then they are used as they are;
+    otherwise they are built here from the vendor's tarballs.
+    """
+    if all(importlib.util.find_spec(name) is not None
+           for name in ('launch', 'launch_yaml', 'launch_ros')):
+        return dict(os.environ)
     install = build_real_launch()
     site = next(install.glob('lib/python3*/site-packages'))
     env = dict(os.environ)

@@ -23,7 +23,8 @@ Steps, each skipped when its inputs did not change since the last run:
    skipped with a message otherwise (those tests are then skipped too).
 
 Only the standard library is used: this runs before the venv exists.
-Usage: ``python3 tools/bootstrap.py [--force]``.
+Usage: ``python3 tools/bootstrap.py [--force] [--no-firmware-tests]`` (``make demo``
+passes the latter: the demo does not need step 6).
 """
 
 import argparse
@@ -341,6 +342,9 @@ def main() -> None:
     """Run every setup step that is not already done."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--force', action='store_true', help='rebuild the workspace')
+    parser.add_argument('--no-firmware-tests', action='store_true',
+                        help="skip the firmware tests' MicroPython (npm ci): the demo "
+                        'does not need it')
     args = parser.parse_args()
     check_python()
     # One setup at a time (two terminals, or tests, running `make` at once): the second
@@ -352,7 +356,8 @@ def main() -> None:
         ensure_overlay()
         ensure_workspace(args.force)
         ensure_ros2cli()
-        ensure_firmware_micropython()
+        if not args.no_firmware_tests:
+            ensure_firmware_micropython()
 
 
 if __name__ == '__main__':
