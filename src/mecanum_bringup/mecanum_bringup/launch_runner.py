@@ -224,6 +224,23 @@ def default_composition_file() -> Path:
     return Path(default_find_package_share('mecanum_bringup')) / 'config' / 'composition.yaml'
 
 
+def domain_words(environ: Dict[str, str], isolated: bool) -> str:
+    """
+    Return e.g. 'ROS_DOMAIN_ID=7 (leased: this system alone)' for the start-up line.
+
+    A system in the environment's domain shares it with every other ROS program of the
+    machine in that domain (domain 0 when ROS_DOMAIN_ID is unset): the words say so, and
+    how to get one of its own.
+    """
+    domain = environ.get('ROS_DOMAIN_ID', '') or '0'
+    if isolated:
+        return f'ROS_DOMAIN_ID={domain} (leased: this system alone)'
+    where = 'ROS_DOMAIN_ID unset: domain 0' if not environ.get('ROS_DOMAIN_ID') \
+        else f'ROS_DOMAIN_ID={domain}'
+    return (f'{where}, shared with every ROS program in it on this machine (--isolated: '
+            'a domain of its own)')
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Command line entry point; returns the process exit code."""
     parser = argparse.ArgumentParser(
@@ -273,7 +290,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 0
     supervisor.say('runner', f'system {path.name}: {len(supervisor.nodes)} nodes ('
                    + ', '.join(n.spec.label for n in supervisor.nodes) + '); '
-                   f'ROS_DOMAIN_ID={environ.get("ROS_DOMAIN_ID", "0")}, discovery range '
+                   + domain_words(environ, options.isolated) + ', discovery range '
                    f'{environ["ROS_AUTOMATIC_DISCOVERY_RANGE"]}; Ctrl-C stops everything')
 
     def on_signal(signum: int, _frame: object) -> None:

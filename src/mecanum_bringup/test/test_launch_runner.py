@@ -181,3 +181,14 @@ def test_runner_cli_reports_bad_files(tmp_path, capsys):
     bad.write_text('launch:\n- node: {pkg: demo}\n')
     assert main([str(bad)]) == 2
     assert 'missing "exec"' in capsys.readouterr().err
+
+
+def test_the_start_line_says_whether_the_domain_is_shared():
+    from mecanum_bringup.launch_runner import domain_words
+    assert domain_words({}, False) == (
+        'ROS_DOMAIN_ID unset: domain 0, shared with every ROS program in it on this '
+        'machine (--isolated: a domain of its own)')
+    assert domain_words({'ROS_DOMAIN_ID': '12'}, False).startswith(
+        'ROS_DOMAIN_ID=12, shared with every ROS program')
+    assert domain_words({'ROS_DOMAIN_ID': '57'}, True) == \
+        'ROS_DOMAIN_ID=57 (leased: this system alone)'
