@@ -17,8 +17,9 @@ arguments, in a ROS domain of its own:
 * every node that the pip runner's reading of the same file (system_description)
   lists is started, and every named node appears in the ROS graph (it got through its
   parameters);
-* no process exits until the test stops the launch with SIGINT, and then nothing is
-  left running.
+* no process exits until the test stops the launch with SIGINT (Ctrl-C), and then
+  every process ends by itself within launch's 5 s (no escalation to SIGTERM), exits
+  0, no ERROR line is printed, and nothing is left running.
 """
 
 import fcntl
@@ -189,8 +190,11 @@ def test_the_real_launch_starts_the_whole_system(launch_file, real_launch_env, r
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', **{
                    key: value for key, value in marked_env.env.items()
                    if key not in real_launch_env})
+    # A process group of its own: Ctrl-C in a terminal reaches launch and every process it
+    # started (launch then sends them no SIGINT of its own: it waits, then escalates).
     process = subprocess.Popen([sys.executable, str(DRIVER), str(path), *arguments], env=env,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
     errors = []
     threading.Thread(target=lambda: errors.extend(process.stderr), daemon=True).start()
     output = LaunchOutput(process)
@@ -218,12 +222,18 @@ def test_the_real_launch_starts_the_whole_system(launch_file, real_launch_env, r
         assert output.events('EXIT') == [], f'a process died:\n{report()}'
     finally:
         if process.poll() is None:
-            process.send_signal(signal.SIGINT)
+            os.killpg(process.pid, signal.SIGINT)     # Ctrl-C
         try:
             process.wait(timeout=30)
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
     assert process.returncode == 0, report()
-    assert 'Traceback' not in ''.join(errors), report()
+    launch_log = ''.join(errors)
+    assert 'Traceback' not in launch_log, report()
+    # Ctrl-C ends every process by itself, in launch's 5 s: no escalation to SIGTERM,
+    # no process that died, no ERROR line; each exits 0.
+    assert 'SIGTERM' not in launch_log and 'process has died' not in launch_log, report()
+    assert '[ERROR]' not in launch_log, report()
+    assert sorted({code for _, code in output.events('EXIT')}) == ['0'], report()
     assert marked_env.leftovers() == []

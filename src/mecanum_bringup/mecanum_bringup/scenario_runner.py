@@ -125,9 +125,16 @@ def interrupted_by() -> str:
 
 @contextmanager
 def stopping_cleanly_on_signals(handler: Callable[[int, object], None] = interrupt):
-    """Within: SIGINT and SIGTERM call handler (default :func:`interrupt`); then as before."""
+    """
+    Within: SIGINT and SIGTERM call handler (default :func:`interrupt`); then as before.
+
+    Both are unblocked too: a blocked signal stays blocked across exec, and a process
+    started with SIGINT blocked (as ros2 launch's children may be) never saw launch's
+    SIGINT, which escalated to SIGTERM after 5 s.
+    """
     previous = {number: signal.signal(number, handler)
                 for number in (signal.SIGINT, signal.SIGTERM)}
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     try:
         yield
     finally:
@@ -596,6 +603,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
             record.aborted = f'runner error: {type(error).__name__}: {error}'
         finally:
             if driver is not None:
+                _end_aborted_step(record, driver.sim_now())
                 record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
                 record.collision_times = list(driver.collision_times)
                 record.safety_events = driver.safety_events()
@@ -681,6 +689,20 @@ def _run_steps(scenario: Scenario, driver, system: SystemProcess, record: RunRec
     finally:
         faults.finish()
         driver.leave_lockstep()
+
+
+def _end_aborted_step(record: RunRecord, now_s: Optional[float]) -> None:
+    """
+    Date the end of a step cut short (Ctrl-C, the system down) at simulated now_s.
+
+    It was recorded as ending where it began ('aborted in 0.0 s', and a run of 0.00 s
+    simulated after the robot had driven for many seconds).
+    """
+    if not record.step_results or now_s is None:
+        return
+    last = record.step_results[-1]
+    if last.outcome == 'aborted' and now_s > last.start_s:
+        last.end_s = now_s
 
 
 def _whole_second(time_s: float) -> bool:
