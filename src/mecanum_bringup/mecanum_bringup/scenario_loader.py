@@ -46,7 +46,7 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       criteria:                        # all optional; defaults shown
         max_duration_s: null           # simulated seconds from the first step to the last
         no_collision: true
-        stay_in_zone: true             # the robot's centre (ground truth) inside the zone
+        stay_in_zone: true             # the footprint (ground truth) inside the zone
         max_localization_error_m: null # |estimate - truth| in x, y, at every estimate
         fault_reactions: false         # each injected fault's expected reaction
                                        # (mecanum_bringup.fault_reactions)
@@ -121,6 +121,15 @@ def load_scenario(path: PathLike) -> Scenario:
     path = Path(path)
     doc = load_yaml_file(path, 'scenario file', ScenarioError)
     return _Parser(path).parse(doc)
+
+
+def parse_steps(steps: Any, source: PathLike) -> Tuple[Step, ...]:
+    """
+    Check a scenario's ``steps`` list alone (no world needed); return its Steps.
+
+    source names the file in errors (ScenarioError, as load_scenario raises).
+    """
+    return _Parser(Path(source)).steps(steps)
 
 
 def scenario_world_document(scenario: Scenario) -> Dict[str, Any]:

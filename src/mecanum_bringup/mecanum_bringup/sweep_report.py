@@ -10,14 +10,31 @@ sweep's folder can be moved or served as a whole. Where the variants measured it
 report also gives the least zone clearance (the footprint's least clearance to the
 authorised zone's border, m, < 0: out of it; see sweep_stats): per variant (JUnit
 property ``min_zone_clearance_m``), overall, and per value of each axis.
+
+Steps are named by what they do, not only by number (:func:`step_labels`): the store
+keeps each criterion as the judge named it ('step 2'), and the report reads each
+variant's steps from the scenario file that run_sweep writes into its run folder
+(``runs/NAME/scenario.yaml``, for every variant before any runs) and describes them
+with :meth:`mecanum_bringup.scenario_model.GoalStep.describe` and its siblings. Step 2
+of a sweep whose variants all have the same step 2 reads ``step 2: goal (4.00, 2.30)``.
+Where variants differ (the scenario axis, or a fault or goals axis, which put a fault
+step first or keep other goals), the rate stays one rate per step number, as stored,
+and its label says so: ``step 2 (differs by scenario)``, with each scenario's step, when
+every variant of one scenario has the same step N; otherwise ``step 1 (differs by
+variant)``, with how many different steps of which kinds. A variant whose scenario file
+cannot be read (moved or deleted run folders) counts for the rates but names nothing.
 """
 
 import base64
+from dataclasses import dataclass
+import functools
 import html
+import json
 import math
 import os
 from pathlib import Path
-from typing import List, Optional, Sequence, Tuple, Union
+import re
+from typing import Dict, Iterable, List, Optional, Sequence, Tuple, Union
 import xml.etree.ElementTree as ElementTree
 
 from mecanum_bringup.scenario_report import one_line, xml_text
@@ -26,12 +43,159 @@ from mecanum_bringup.sweep_stats import (
     least_clearance, LeastClearance, Rate, summary_axes, value_label, VariantChange,
     worst_variants)
 from mecanum_bringup.sweep_store import VariantRow
+import yaml
 
 PathLike = Union[str, Path]
 #: Longest first failure shown in a table cell or a JUnit message.
 MAX_DETAIL_CHARS = 200
 #: The files of a run folder that the page links, if they exist.
 RUN_FILES = ('run.png', 'summary.json', 'bag')
+#: The variant's scenario file in its run folder (sweep_runner.write_variant_files).
+VARIANT_SCENARIO = 'scenario.yaml'
+#: A step's criterion name, as the judge names it (scenario_judge: 'step 1' = steps[0]).
+_STEP = re.compile(r'step ([1-9][0-9]*)')
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
+
+# --- the steps' names ------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class StepLabel:
+    """
+    What one step number stands for in a sweep: a short label and, if it varies, why.
+
+    label: the table's name of the criterion, e.g. 'step 2: goal (4.00, 2.30)', 'step 2
+    (differs by scenario)' or 'step 1 (differs by variant)'; differs: '' (the same in
+    every variant), 'scenario' or 'variant'; lines: for a step that differs, what it
+    is, e.g. ('fault_border_patrol: goal (4.00, 1.20)', ...) by scenario, or ('66
+    different fault steps',) by variant.
+    """
+
+    label: str
+    differs: str = ''
+    lines: Tuple[str, ...] = ()
+
+
+def _variant_folders(row: VariantRow, runs_base: Optional[Path],
+                     out_dir: Optional[Path]) -> List[Path]:
+    """Return where the row's run folder may be: run_dir, then out_dir/runs/NAME."""
+    folders = []
+    if row.run_dir:
+        run_dir = Path(row.run_dir)
+        if not run_dir.is_absolute() and runs_base is not None:
+            run_dir = runs_base / run_dir
+        folders.append(run_dir)
+    if out_dir is not None:
+        folders.append(out_dir / 'runs' / row.name)
+    return folders
+
+
+def variant_steps(row: VariantRow, runs_base: Optional[PathLike] = None,
+                  out_dir: Optional[PathLike] = None) -> Optional[Tuple[str, ...]]:
+    """
+    Return the descriptions of a variant's steps in order ('goal (4.00, 2.30)', ...).
+
+    They come from the scenario file in the row's run folder (run_dir, relative to
+    runs_base if relative; else out_dir/runs/NAME), parsed with the scenario loader's
+    step checks and described by Step.describe(). None when no such file can be read
+    or its steps do not parse.
+    """
+    base = Path(runs_base) if runs_base is not None else None
+    out = Path(out_dir) if out_dir is not None else None
+    for folder in _variant_folders(row, base, out):
+        try:
+            text = (folder / VARIANT_SCENARIO).read_text(encoding='utf-8')
+        except (OSError, UnicodeDecodeError):
+            continue
+        try:
+            document = yaml.load(text, Loader=_YAML_LOADER)
+            steps = document['scenario']['steps']
+            key = json.dumps(steps, sort_keys=True)
+        except (yaml.YAMLError, TypeError, KeyError, ValueError):
+            return None
+        return _describe_steps(key)
+    return None
+
+
+@functools.lru_cache(maxsize=4096)
+def _describe_steps(steps_json: str) -> Optional[Tuple[str, ...]]:
+    """Return the descriptions of a scenario's steps list (as JSON), or None."""
+    from mecanum_bringup.scenario_loader import parse_steps, ScenarioError
+    try:
+        # The loader's own step checks (no world needed): the same Step objects, so the
+        # same describe() as the judge's lines and the runner's progress.
+        steps = parse_steps(json.loads(steps_json), VARIANT_SCENARIO)
+    except (ScenarioError, LookupError, OSError):
+        return None
+    return tuple(step.describe() for step in steps)
+
+
+def _kinds_text(descriptions: Iterable[str]) -> str:
+    """Return e.g. '66 different fault steps' or '3 different steps (goal, wait)'."""
+    distinct = list(dict.fromkeys(descriptions))
+    kinds = list(dict.fromkeys(text.split(' ', 1)[0] for text in distinct))
+    if len(kinds) == 1:
+        return f'{len(distinct)} different {kinds[0]} steps'
+    return f'{len(distinct)} different steps ({", ".join(kinds)})'
+
+
+def step_labels(rows: Sequence[VariantRow], runs_base: Optional[PathLike] = None,
+                out_dir: Optional[PathLike] = None) -> Dict[str, StepLabel]:
+    """
+    Return {'step N': StepLabel} for each step number of the rows' variants.
+
+    A step every variant has the same way gets 'step N: DESCRIPTION'. One that differs
+    between variants of different scenarios (axis 'scenario') but is the same within
+    each scenario gets 'step N (differs by scenario)' with a line 'SCENARIO: DESCRIPTION'
+    per scenario (in order of first appearance by index; a scenario without a step N has
+    no line); any other that differs gets 'step N (differs by variant)' with one line
+    counting its different steps and their kinds. Only variants whose steps could be read
+    (variant_steps) count; a step number none of them has is left out.
+    """
+    found: Dict[str, List[Tuple[Optional[str], str]]] = {}
+    for row in sorted(rows, key=lambda item: item.index):
+        steps = variant_steps(row, runs_base, out_dir)
+        if steps is None:
+            continue
+        scenario = row.values.get('scenario')
+        scenario = scenario if isinstance(scenario, str) else None
+        for number, description in enumerate(steps, start=1):
+            found.setdefault(f'step {number}', []).append((scenario, description))
+    labels = {}
+    for name, pairs in found.items():
+        descriptions = list(dict.fromkeys(description for _, description in pairs))
+        if len(descriptions) == 1:
+            labels[name] = StepLabel(f'{name}: {descriptions[0]}')
+            continue
+        by_scenario: Dict[Optional[str], List[str]] = {}
+        for scenario, description in pairs:
+            by_scenario.setdefault(scenario, [])
+            if description not in by_scenario[scenario]:
+                by_scenario[scenario].append(description)
+        if None not in by_scenario and all(len(d) == 1 for d in by_scenario.values()):
+            labels[name] = StepLabel(
+                f'{name} (differs by scenario)', 'scenario',
+                tuple(f'{scenario}: {d[0]}' for scenario, d in by_scenario.items()))
+        else:
+            labels[name] = StepLabel(f'{name} (differs by variant)', 'variant',
+                                     (_kinds_text(descriptions),))
+    return labels
+
+
+def _criterion_label(name: str, labels: Dict[str, StepLabel]) -> str:
+    """Return a criterion's table label: a step's label, or the name itself."""
+    label = labels.get(name)
+    return label.label if label is not None else name
+
+
+def _step_legend(labels: Dict[str, StepLabel]) -> List[str]:
+    """Return one line per step that differs: 'step 2 by scenario: A: ...; B: ...'."""
+    lines = []
+    for name in sorted(labels, key=lambda item: int(_STEP.fullmatch(item).group(1))):
+        label = labels[name]
+        if label.differs:
+            lines.append(f'{name} by {label.differs}: {"; ".join(label.lines)}')
+    return lines
 
 
 def _percent(value: float) -> str:
@@ -71,19 +235,25 @@ def _status_counts(rows: Sequence[VariantRow]) -> str:
             f'expected, {counts["UNEXPECTED"]} unexpected, {counts["ERROR"]} errors')
 
 
-def rates_table(rows: Sequence[VariantRow]) -> str:
+def rates_table(rows: Sequence[VariantRow], runs_base: Optional[PathLike] = None) -> str:
     """
     Return a fixed-width table of the failure rates and a summary line.
 
     One line per rate (the verdict first, then the criteria): criterion, failures/n, rate,
-    95 % CI (Wilson). The verdict counts ERROR rows as failures. When some variant
-    measured it, a last line gives the least zone clearance and its variant.
+    95 % CI (Wilson). The verdict counts ERROR rows as failures. A step is named by what
+    it does (step_labels; run folders relative to runs_base, default the current
+    folder), e.g. 'step 2: goal (4.00, 2.30)'; for each step that differs between
+    variants a line after the table says how ('step 2 by scenario: A: ...; B: ...').
+    When some variant measured it, a last line gives the least zone clearance and its
+    variant.
     """
+    labels = step_labels(rows, runs_base)
     table = [('criterion', 'failures/n', 'rate', '95 % CI')]
     for rate in criterion_rates(rows):
-        table.append((rate.name, f'{rate.failures}/{rate.n}',
+        table.append((_criterion_label(rate.name, labels), f'{rate.failures}/{rate.n}',
                       _percent(rate.rate) if rate.n else '-', _interval(rate)))
     lines = _fixed_width(table, right=(1, 2, 3))
+    lines += _step_legend(labels)
     lines.append(_status_counts(rows))
     least = least_clearance(rows)
     if least.measured:
@@ -268,6 +438,25 @@ def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]],
     return f'<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
 
 
+def _criterion_cell(name: str, labels: Dict[str, StepLabel]) -> str:
+    """Return a criterion's rates table cell (HTML): its label and, if it differs, how."""
+    label = labels.get(name)
+    if label is None:
+        return html.escape(name)
+    return '<br>'.join(html.escape(line) for line in (label.label,) + label.lines)
+
+
+def _failed_names(row: VariantRow, steps: Optional[Sequence[str]]) -> List[str]:
+    """Return the row's failed criteria, each step with its description if known."""
+    names = []
+    for name in failed_criteria(row):
+        match = _STEP.fullmatch(name)
+        number = int(match.group(1)) if match else 0
+        names.append(f'{name}: {steps[number - 1]}' if steps and 0 < number <= len(steps)
+                     else name)
+    return names
+
+
 def _least_cell(least: LeastClearance) -> str:
     """Return e.g. '-0.050 m (tour_0001)', or '-' when no variant measured it."""
     if least.clearance_m is None:
@@ -294,7 +483,11 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
     worst_count variants (sweep_stats.worst_variants) with their values, failed criteria,
     first failure or error, and relative links to their run folder's run.png,
     summary.json and bag/ when those exist. A row's relative run_dir is taken relative to
-    runs_base (default: out_dir). The axes are axes and, for an axis of mappings with a
+    runs_base (default: out_dir). Steps are named by what they do (step_labels, reading
+    each variant's run folder, or out_dir/runs/NAME): 'step 2: goal (4.00, 2.30)' in the
+    rates table, with each scenario's step, or how many different steps, under a step
+    that differs between variants; a worst variant's failed steps are its own. The axes
+    are axes and, for an axis of mappings with a
     kind (faults), 'AXIS.kind' after it (sweep_stats.summary_axes). When some variant
     measured its least zone clearance, the per-axis tables give each value's least (and
     its variant), a section gives the overall least and the worst_count variants of
@@ -314,7 +507,8 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
     (out_dir / 'junit.xml').write_text(junit_xml(rows, sweep_name), encoding='utf-8')
     png = base64.b64encode(png_path.read_bytes()).decode('ascii')
 
-    rate_rows = [(esc(rate.name), f'{rate.failures}/{rate.n}',
+    labels = step_labels(rows, base, out_dir)
+    rate_rows = [(_criterion_cell(rate.name, labels), f'{rate.failures}/{rate.n}',
                   _percent(rate.rate) if rate.n else '-', _interval(rate))
                  for rate in criterion_rates(rows)]
     parts = [
@@ -376,7 +570,8 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
             cells = (
                 esc(row.name), f'<span class="bad">{esc(row.status)}</span>',
                 '<br>'.join(esc(line) for line in _values_text(row).splitlines()) or '-',
-                esc(', '.join(failed_criteria(row))) or '-',
+                '<br>'.join(esc(name) for name in _failed_names(
+                    row, variant_steps(row, base, out_dir))) or '-',
                 esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-')
             worst_rows.append(cells + ((_metres(row.min_zone_clearance_m),)
                                        if clearances else ()))

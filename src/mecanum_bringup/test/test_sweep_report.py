@@ -6,10 +6,12 @@ import xml.etree.ElementTree as ElementTree
 
 from matplotlib.image import imread
 from mecanum_bringup.sweep_report import (
-    compare_table, junit_xml, plot_axis_rates, rates_table, variant_changes_table, write_report)
+    compare_table, junit_xml, plot_axis_rates, rates_table, step_labels, StepLabel,
+    variant_changes_table, variant_steps, write_report)
 from mecanum_bringup.sweep_stats import compare, variant_changes
 from mecanum_bringup.sweep_store import read_rows, ResultsStore, VariantRow
 import pytest
+import yaml
 
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 POSE = {'x': 2.95, 'y': 2.0, 'yaw': 0.0}
@@ -246,3 +248,130 @@ def test_write_report_shows_the_least_clearance_per_variant_axis_value_and_fault
 def test_a_report_without_clearances_has_no_clearance_section(rows, tmp_path):
     text = write_report(rows, 'tour', tmp_path, ['world']).read_text(encoding='utf-8')
     assert 'Zone clearance' not in text and 'least zone clearance' not in text
+
+
+# --- the steps named by what they do ---------------------------------------------------
+GOAL_A = {'goal': {'x': 4.0, 'y': 1.2, 'yaw': -1.5708, 'expect': 'any'}}
+GOAL_B = {'goal': {'x': 4.0, 'y': 2.3}}
+FORWARD = {'command': 'forward 0.6 m', 'expect': 'any'}
+WAIT = {'wait': {'duration_s': 1.0}}
+
+
+def variant_row(folder, index, steps, criteria, values=None, status='OK', **extra):
+    """Return a row whose run folder (folder/runs/NAME) holds its scenario.yaml."""
+    result = row(index, status, criteria, values, **extra)
+    run_dir = folder / 'runs' / result.name
+    run_dir.mkdir(parents=True, exist_ok=True)
+    document = {'scenario': {'name': result.name, 'world': 'apartment', 'steps': steps}}
+    (run_dir / 'scenario.yaml').write_text(yaml.safe_dump(document), encoding='utf-8')
+    result.run_dir = str(run_dir)
+    return result
+
+
+def rate_lines(table):
+    """Return {first column: the rest} of the rates table's rows (two spaces apart)."""
+    return {line.split('  ')[0]: line for line in table.splitlines()[2:]}
+
+
+def test_the_rates_table_names_each_step_by_what_it_does(tmp_path):
+    steps = [GOAL_A, GOAL_B, FORWARD, WAIT]
+    rows = [variant_row(tmp_path, index, steps,
+                        {'step 1': True, 'step 2': index != 1, 'step 3': True,
+                         'step 4': True, 'no_collision': True},
+                        {'seed': index}, status='UNEXPECTED' if index == 1 else 'OK')
+            for index in range(3)]
+    table = rates_table(rows)
+    lines = table.splitlines()
+    assert [line.split('  ')[0] for line in lines[2:7]] == [
+        'verdict', 'step 1: goal (4.00, 1.20)', 'step 2: goal (4.00, 2.30)',
+        "step 3: command 'forward 0.6 m'", 'step 4: wait 1.0 s']
+    assert '1/3' in rate_lines(table)['step 2: goal (4.00, 2.30)']
+    assert 'no_collision' in rate_lines(table)
+    # Nothing differs: no line about differences; the summary line follows the table.
+    assert 'differs' not in table and ' by ' not in table
+    assert lines[8] == '3 variants: 2 as expected, 1 unexpected, 0 errors'
+
+
+def test_the_store_keeps_the_criterion_names(tmp_path):
+    store_path = tmp_path / 'results.sqlite'
+    with ResultsStore(store_path, 'named', 'fingerprint') as store:
+        store.add(variant_row(tmp_path, 0, [GOAL_A], {'step 1': False}, {'seed': 0},
+                              status='UNEXPECTED'))
+    stored = read_rows(store_path)
+    assert stored[0].criteria == {'step 1': False}
+    assert 'step 1: goal (4.00, 1.20)' in rates_table(stored)
+
+
+def test_a_step_that_differs_by_scenario_names_each_scenarios_step(tmp_path):
+    patrol = [GOAL_A, GOAL_B]
+    teleop = [FORWARD, WAIT, WAIT]
+    rows = [variant_row(tmp_path, 0, patrol, {'step 1': True, 'step 2': False},
+                        {'scenario': 'patrol'}, status='UNEXPECTED'),
+            variant_row(tmp_path, 1, teleop, {'step 1': True, 'step 2': True, 'step 3': True},
+                        {'scenario': 'teleop'}),
+            variant_row(tmp_path, 2, patrol, {'step 1': True, 'step 2': True},
+                        {'scenario': 'patrol'})]
+    table = rates_table(rows)
+    names = rate_lines(table)
+    assert '0/3' in names['step 1 (differs by scenario)']
+    assert '1/3' in names['step 2 (differs by scenario)']
+    # Only the teleop scenario has a step 3: the same wherever it is.
+    assert '0/1' in names['step 3: wait 1.0 s']
+    assert ('step 1 by scenario: patrol: goal (4.00, 1.20); teleop: command '
+            "'forward 0.6 m'") in table.splitlines()
+    assert 'step 2 by scenario: patrol: goal (4.00, 2.30); teleop: wait 1.0 s' in \
+        table.splitlines()
+    page = write_report(rows, 'mixed', tmp_path, ['scenario']).read_text(encoding='utf-8')
+    assert ('<td>step 1 (differs by scenario)<br>patrol: goal (4.00, 1.20)<br>teleop: '
+            'command &#x27;forward 0.6 m&#x27;</td><td class="num">0/3</td>') in page
+    assert '<td>step 3: wait 1.0 s</td><td class="num">0/1</td>' in page
+
+
+def test_a_step_that_differs_within_a_scenario_says_how_many_steps_it_stands_for(tmp_path):
+    # A fault axis puts a fault step first: step 1 differs from variant to variant.
+    faults = [{'fault': {'kind': 'lidar_blinded', 'onset_s': onset, 'duration_s': 5.0}}
+              for onset in (1.0, 4.0)] + [{'fault': {'kind': 'estop', 'onset_s': 1.0}}]
+    rows = [variant_row(tmp_path, index, [fault, GOAL_A], {'step 1': True, 'step 2': True},
+                        {'fault': fault['fault']}) for index, fault in enumerate(faults)]
+    rows.append(variant_row(tmp_path, 3, [GOAL_B, GOAL_A], {'step 1': True, 'step 2': True},
+                            {'fault': None}))
+    table = rates_table(rows)
+    names = rate_lines(table)
+    assert '0/4' in names['step 1 (differs by variant)']
+    assert '0/4' in names['step 2: goal (4.00, 1.20)']
+    assert 'step 1 by variant: 4 different steps (fault, goal)' in table.splitlines()
+    three = rates_table(rows[:3])
+    assert 'step 1 by variant: 3 different fault steps' in three.splitlines()
+    page = write_report(rows[:3], 'faults', tmp_path, ['fault']).read_text(encoding='utf-8')
+    assert '<td>step 1 (differs by variant)<br>3 different fault steps</td>' in page
+
+
+def test_the_worst_variants_name_their_failed_steps(tmp_path):
+    rows = [variant_row(tmp_path, 0, [GOAL_A, FORWARD],
+                        {'step 1': True, 'step 2': False, 'no_collision': False},
+                        {'seed': 0}, status='UNEXPECTED', first_failure='step 2 ...')]
+    page = write_report(rows, 'tour', tmp_path, ['seed']).read_text(encoding='utf-8')
+    worst = page[page.index('<h2>Worst variants</h2>'):]
+    assert '<td>step 2: command &#x27;forward 0.6 m&#x27;<br>no_collision</td>' in worst
+
+
+def test_steps_are_found_from_a_relative_run_dir_or_the_results_folder(tmp_path):
+    out = tmp_path / 'out'
+    moved = variant_row(out, 0, [GOAL_B], {'step 1': True}, {'seed': 0})
+    moved.run_dir = '/nowhere/runs/tour_0000'      # the folder was moved: out/runs/NAME
+    relative = variant_row(out, 1, [GOAL_B], {'step 1': True}, {'seed': 1})
+    relative.run_dir = 'runs/tour_0001'
+    assert variant_steps(moved) is None
+    assert variant_steps(moved, out_dir=out) == ('goal (4.00, 2.30)',)
+    assert variant_steps(relative, runs_base=out) == ('goal (4.00, 2.30)',)
+    assert step_labels([moved, relative], out, out) == {
+        'step 1': StepLabel('step 1: goal (4.00, 2.30)')}
+    page = write_report([moved, relative], 'tour', out, ['seed']).read_text(encoding='utf-8')
+    assert '<td>step 1: goal (4.00, 2.30)</td><td class="num">0/2</td>' in page
+    # An unreadable or invalid scenario file names nothing: the plain criterion name.
+    (out / 'runs' / 'tour_0001' / 'scenario.yaml').write_text('scenario: [', encoding='utf-8')
+    broken = variant_row(out, 2, [{'goal': {'x': 'north', 'y': 1.0}}], {'step 1': True})
+    assert variant_steps(relative, runs_base=out) is None
+    assert variant_steps(broken) is None
+    assert rate_lines(rates_table([relative, broken], runs_base=out))['step 1'].split()[2] \
+        == '0/2'
