@@ -15,7 +15,8 @@ Steps, each skipped when its inputs did not change since the last run:
 4. The workspace ``src/`` built with ``colcon build --symlink-install``.
 5. The ``ros2`` command and ``ros2 launch`` (ros2cli, launch and the packages they
    need: tools/ros2_upstream.py), built from their pinned upstream Jazzy sources into
-   ``.venv/ros2cli``: from ``$MECANUM_ROS2_SOURCES``, a ``shared/vendor`` folder beside or
+   ``.venv/ros2cli``, with this project's ``ros2 bag`` (tools/ros2cli_pip): from
+   ``$MECANUM_ROS2_SOURCES``, a ``shared/vendor`` folder beside or
    above the repository, or GitHub. Where none is reachable, set-up goes on and says
    that ``ros2`` is missing and why (``./mecanum launch`` and ``./mecanum run`` work).
 6. The firmware tests' MicroPython (``firmware/package-lock.json``: the WebAssembly
@@ -48,6 +49,10 @@ LOCK_FILE = ROOT / 'requirements' / f'ros-jazzy-pip.{PY_TAG}.lock.txt'
 OVERLAY_SRC = ROOT / 'ros_pip_overlay'
 OVERLAY_PREFIX = VENV / 'ros_overlay'
 ROS2CLI_PREFIX = VENV / 'ros2cli'
+# The pip setup's own ros2cli extensions (`ros2 bag` on MCAP: rosbag2 is C++ and not on
+# PyPI), built with the upstream packages. Never built on an apt install (tools/ has a
+# COLCON_IGNORE), where the real ros2bag stays.
+ROS2CLI_PIP_SRC = ROOT / 'tools' / 'ros2cli_pip'
 STAMP_DIR = VENV / '.mecanum_stamps'
 LOG_DIR = ROOT / 'log' / 'bootstrap'
 # Packaging tools the lock file does not cover. setuptools stays below 80, whose new
@@ -287,7 +292,8 @@ def ensure_ros2cli() -> None:
     """Build the upstream ros2cli and launch packages into .venv/ros2cli (see step 5)."""
     import ros2_upstream
     pins = repr([(p.name, p.commit, p.tree_sha256) for p in ros2_upstream.PACKAGES])
-    digest = hashlib.sha256((pins + sys.version).encode()).hexdigest()
+    digest = hashlib.sha256((pins + sys.version + build_digest(ROS2CLI_PIP_SRC)).encode()
+                            ).hexdigest()
     if read_stamp('ros2cli') == digest and (ROS2CLI_PREFIX / 'install').is_dir():
         return
     say('building the ros2 command and ros2 launch from their upstream Jazzy sources '
@@ -306,9 +312,12 @@ def ensure_ros2cli() -> None:
         return
     origins = sorted({str(Path(origin).parent) if '://' not in origin else 'GitHub'
                       for _, origin in fetched})
-    shutil.rmtree(ROS2CLI_PREFIX / 'install', ignore_errors=True)
+    for stale in ('build', 'install'):
+        shutil.rmtree(ROS2CLI_PREFIX / stale, ignore_errors=True)
+    own = sorted(str(p.parent) for p in ROS2CLI_PIP_SRC.glob('*/package.xml'))
     cmd = [str(VENV / 'bin' / 'colcon'), '--log-base', str(ROOT / 'log' / 'colcon'),
-           'build', '--merge-install', '--base-paths', str(source),
+           'build', '--merge-install', '--symlink-install', '--base-paths', str(source),
+           *own,
            '--build-base', str(ROS2CLI_PREFIX / 'build'),
            '--install-base', str(ROS2CLI_PREFIX / 'install'),
            '--event-handlers', 'console_cohesion-', 'summary+']

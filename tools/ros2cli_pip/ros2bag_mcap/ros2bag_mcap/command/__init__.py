@@ -1,0 +1,1 @@
+"""The ``bag`` command of the ros2 command line tools."""

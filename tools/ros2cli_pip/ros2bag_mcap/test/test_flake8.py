@@ -1,0 +1,12 @@
+from pathlib import Path
+
+from ament_flake8.main import main_with_errors
+import pytest
+
+
+@pytest.mark.flake8
+@pytest.mark.linter
+def test_flake8():
+    package_dir = str(Path(__file__).resolve().parents[1])
+    rc, errors = main_with_errors(argv=[package_dir])
+    assert rc == 0, 'Found %d code style errors / warnings:\n' % len(errors) + '\n'.join(errors)
