@@ -14,6 +14,7 @@ starts at map (1, 1, 0.3)) and base_link -> laser on /tf_static, and empty laser
 import math
 from pathlib import Path
 import re
+import shutil
 import subprocess
 import threading
 import time
@@ -521,3 +522,22 @@ def test_a_malformed_zone_file_stops_the_navigator_naming_the_file_and_key(ros_e
     assert re.search(r'\[FATAL\].*parameter zone_file: ' + re.escape(str(zone_file))
                      + r': authorised_zone.include: the polygon needs at least 3 points',
                      output), output
+
+
+@pytest.mark.skipif(shutil.which('ros2') is None,
+                    reason='no ros2 command: make setup found no upstream ros2cli sources')
+def test_ros2_action_send_goal_with_feedback_drives_the_robot(navigation, ros_env):
+    """The README's `ros2 action send_goal /navigate_to_pose ... --feedback`, as written."""
+    _, nav = navigation
+    result = subprocess.run(
+        ['ros2', 'action', 'send_goal', '/navigate_to_pose', 'nav2_msgs/action/NavigateToPose',
+         '{pose: {header: {frame_id: map}, pose: {position: {x: 1.0, y: 2.5}, '
+         'orientation: {w: 1.0}}}}', '--feedback'],
+        env=ros_env, capture_output=True, text=True, timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output
+    assert 'Goal accepted' in output, output
+    assert 'distance_remaining:' in output, output          # the feedback, printed
+    assert 'Goal finished with status: SUCCEEDED' in output, output
+    pose = nav.robot()
+    assert math.hypot(pose[0] - 1.0, pose[1] - 2.5) < 0.3, pose
