@@ -181,7 +181,8 @@ def ensure_requirements() -> None:
     digest = digest_of([LOCK_FILE], extra=sys.version + ' '.join(PACKAGING_PINS))
     if read_stamp('requirements') == digest:
         return
-    say('installing pinned ROS 2 Jazzy wheels and tools into .venv (under a minute with pip's cache, about a minute without)')
+    say('installing pinned ROS 2 Jazzy wheels and tools into .venv (about a minute; less '
+        'with pip\'s cache)')
     started = time.monotonic()
     env = dict(os.environ, PIP_DISABLE_PIP_VERSION_CHECK='1')
     run_logged([str(venv_python()), '-m', 'pip', 'install', *PACKAGING_PINS],
