@@ -182,7 +182,7 @@ def ensure_requirements() -> None:
     if read_stamp('requirements') == digest:
         return
     say('installing pinned ROS 2 Jazzy wheels and tools into .venv (about a minute; less '
-        'with pip\'s cache)')
+        "with pip's cache)")
     started = time.monotonic()
     env = dict(os.environ, PIP_DISABLE_PIP_VERSION_CHECK='1')
     run_logged([str(venv_python()), '-m', 'pip', 'install', *PACKAGING_PINS],
