@@ -53,7 +53,17 @@ def test_commands_cross_processes_and_ctrl_c_leaves_nothing(start_system, test_n
     status.wait_for(lambda m: m.data == 'accepted: strafe left 0.3 m at 0.3 m/s')
     cmd_vel.wait_for(lambda m: abs(m.linear.y - 0.3) < 1e-9 and m.linear.x == 0.0)
     status.wait_for(lambda m: m.data == 'done: strafe left')
-    time.sleep(0.3)  # let the final transforms arrive
+    # The simulation stops with the final zero twist: wait until its pose stands still
+    # (two transforms 0.1 s of sim time apart, unchanged), not for a guessed time.
+    done_at = time.monotonic()
+
+    def settled(_msg) -> bool:
+        late = [m.transforms[0] for when, m in tf.messages if when > done_at]
+        return len(late) >= 2 and (
+            late[-1].header.stamp.sec + late[-1].header.stamp.nanosec * 1e-9
+            - late[0].header.stamp.sec - late[0].header.stamp.nanosec * 1e-9 >= 0.1) and \
+            late[-1].transform.translation.y == late[-2].transform.translation.y
+    tf.wait_for(settled, timeout=20)
     pose = tf.latest().transforms[0].transform
     # 0.3 m to the left within one controller period (0.05 s of 0.3 m/s) and latency.
     assert pose.translation.y == pytest.approx(0.3, abs=0.03)

@@ -24,6 +24,14 @@ sets zone_guard, the chain's last stage) may publish ``cmd_vel``: its publishers
 looked up every ``publisher_check_period_s`` (steady clock), and while another node
 publishes it the wheel targets are zero and commands are ignored, an ERROR names it and
 /diagnostics reports it, until it has gone (mecanum_control.publisher_check).
+
+Run-time parameter (``ros2 param set /motor_controller cmd_timeout_s 0.3``; checked as
+at start-up, logged, see :mod:`mecanum_control.runtime_parameters`): ``cmd_timeout_s``
+only, from the next check on. Everything else is read-only (``ros2 param set`` says
+why): the speed and acceleration limits come from motor_params.yaml, which the command
+chain's twist_mux also uses to limit twists before the collision monitor and the zone
+guard judge them, so changing them in this node only would let the motors run a twist
+the chain did not judge; ``absurd_factor`` goes with them; the rest is wiring.
 """
 
 from pathlib import Path
@@ -33,12 +41,14 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.command_limits import (
-    AxisLimits, CommandRejected, MotorCommandCore, TwistLimits)
+    AxisLimits, CommandRejected, CommandWatchdog, MotorCommandCore, TwistLimits)
 from mecanum_control.messages import diagnostic_array, wheel_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.publisher_check_node import (
     declare_publisher_check, poll_publisher_check, start_publisher_checks)
+from mecanum_control.runtime_parameters import (
+    PUBLISHER_CHECK_REASON, RuntimeParameters, WIRING_REASON)
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Bool, Float32MultiArray
@@ -46,6 +56,36 @@ from std_srvs.srv import Trigger
 
 STATUS_LEVELS = {'ok': DiagnosticStatus.OK, 'waiting': DiagnosticStatus.OK,
                  'timeout': DiagnosticStatus.WARN, 'estop': DiagnosticStatus.ERROR}
+#: Why the other parameters are read-only (motor_params.yaml's say why themselves).
+READ_ONLY_REASONS = {
+    'absurd_factor': ("the bound (a multiple of motor_params.yaml's limits) beyond which a "
+                      'command is refused, not limited: it goes with those limits, which the '
+                      'command chain applies too; edit and restart the system'),
+    'publish_rate_hz': ("the wheel-target rate the control stack's timeouts were set for; "
+                        'restart the node to change it'),
+    'use_stamped_cmd_vel': WIRING_REASON,
+    'estop_latch_file': ('where an engaged emergency stop is recorded across restarts: '
+                         'moved at run time, an engaged stop would be forgotten; restart to '
+                         'change it'),
+    'cmd_vel_publishers': PUBLISHER_CHECK_REASON,
+    'publisher_check_period_s': PUBLISHER_CHECK_REASON,
+}
+
+
+class TunableCommandCore(MotorCommandCore):
+    """MotorCommandCore whose command timeout changes while it runs."""
+
+    @property
+    def cmd_timeout_s(self) -> float:
+        """Return the command timeout (s)."""
+        return self._watchdog.timeout_s
+
+    def set_cmd_timeout(self, timeout_s: float) -> None:
+        """Use a new command timeout (finite, > 0) from the next check on; the last feed stays."""
+        watchdog = CommandWatchdog(timeout_s)
+        if self._watchdog.last_feed_s is not None:
+            watchdog.feed(self._watchdog.last_feed_s)
+        self._watchdog = watchdog
 
 
 class MotorController(Node):
@@ -54,8 +94,9 @@ class MotorController(Node):
     def __init__(self, **node_options):
         super().__init__('motor_controller', **node_options)
         config = declare_robot_config(self)
-        cmd_timeout_s = positive('cmd_timeout_s',
-                                 self.declare_parameter('cmd_timeout_s', 0.5).value)
+        self.runtime = RuntimeParameters(self, READ_ONLY_REASONS)
+        cmd_timeout_s = self.runtime.declare(
+            'cmd_timeout_s', 0.5, positive, lambda value: self.core.set_cmd_timeout(value))
         publish_rate_hz = positive('publish_rate_hz',
                                    self.declare_parameter('publish_rate_hz', 50.0).value)
         absurd_factor = positive('absurd_factor',
@@ -69,8 +110,8 @@ class MotorController(Node):
             wz=AxisLimits(config.max_angular_velocity_rad_s,
                           config.max_angular_acceleration_rad_s2),
             absurd_factor=absurd_factor)
-        self.core = MotorCommandCore(config.geometry, limits, config.max_wheel_speed_rad_s,
-                                     cmd_timeout_s)
+        self.core = TunableCommandCore(config.geometry, limits, config.max_wheel_speed_rad_s,
+                                       cmd_timeout_s)
         self._reported_status = None
         self.release_service_name = self.resolve_service_name('~/release_emergency_stop')
         if self.estop_latch_file is not None and self.estop_latch_file.exists():
@@ -104,6 +145,7 @@ class MotorController(Node):
         self.publish_latch()
         self.timer = self.create_timer(1.0 / publish_rate_hz, self.publish_speeds)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        self.runtime.start()
         self.get_logger().info(
             f'Motor controller started: limits vx {config.max_velocity_x_m_s} m/s, '
             f'vy {config.max_velocity_y_m_s} m/s, wz {config.max_angular_velocity_rad_s} '

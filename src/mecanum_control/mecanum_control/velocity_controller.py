@@ -32,11 +32,23 @@ then on (mecanum_control.publisher_check). An intruder on motor_efforts also cle
 stall latches (hardware_interface holds the board at zero for it, so wheels that stood
 still were not stalled), and control resumes one check after it has gone, when
 hardware_interface has resumed.
+
+Run-time parameters (``ros2 param set /velocity_controller kp 0.04``; checked as at
+start-up, logged, see :mod:`mecanum_control.runtime_parameters`): the gains ``kp``,
+``ki``, ``kd``, ``kf``, ``static_effort``, ``max_effort``, ``derivative_filter_tau_s``,
+``integral_freeze_rate_rad_s2`` (every wheel's controller takes them at once, without a
+step in effort: :meth:`TunablePidController.retune` keeps each integrator and moves it by
+the change of the other terms), the stall check's ``stall_effort_threshold``,
+``stall_velocity_threshold_rad_s``, ``stall_time_s``, ``stall_target_threshold_rad_s``
+(at once; a latched fault stays latched), ``target_timeout_s`` and
+``measurement_timeout_s``. Read-only (``ros2 param set`` says why): ``control_rate_hz``,
+the publisher checks' parameters and motor_params.yaml's.
 """
 
+from dataclasses import fields
 import math
 import sys
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mecanum_control.messages import wheel_array
@@ -46,6 +58,7 @@ from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains,
                                  StallDetector)
 from mecanum_control.publisher_check_node import (
     declare_publisher_check, poll_publisher_check, start_publisher_checks)
+from mecanum_control.runtime_parameters import PUBLISHER_CHECK_REASON, RuntimeParameters
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -58,6 +71,97 @@ WHEELS = ('FL', 'FR', 'RL', 'RR')
 # (the no-load speed is only about 1.2 x that): a decoding or transport glitch.
 PLAUSIBLE_SPEED_FACTOR = 4.0
 
+#: The gains: PidGains' fields, run-time parameters of the same names.
+GAIN_PARAMETERS = tuple(field.name for field in fields(PidGains))
+#: The stall check's run-time parameters and the StallConfig fields they set.
+STALL_PARAMETERS = {'stall_effort_threshold': 'effort_threshold',
+                    'stall_velocity_threshold_rad_s': 'velocity_threshold_rad_s',
+                    'stall_time_s': 'time_s',
+                    'stall_target_threshold_rad_s': 'target_threshold_rad_s'}
+#: Why the other parameters are read-only (motor_params.yaml's say why themselves).
+READ_ONLY_REASONS = {
+    'control_rate_hz': ("the control loop's rate, which the gains were tuned at; restart "
+                        'the node to change it'),
+    '*_publishers': PUBLISHER_CHECK_REASON,
+    'publisher_check_period_s': PUBLISHER_CHECK_REASON,
+}
+
+
+def pid_gains(values: Dict[str, float]) -> PidGains:
+    """Return the PidGains of the gain parameters (ValueError naming the bad one)."""
+    try:
+        return PidGains(**values)
+    except ValueError as error:
+        raise ValueError(str(error).replace('PidGains.', 'parameter ', 1)) from None
+
+
+def stall_config(values: Dict[str, float]) -> StallConfig:
+    """Return the StallConfig of the stall parameters (ValueError naming the bad one)."""
+    try:
+        return StallConfig(**{STALL_PARAMETERS[name]: value for name, value in values.items()})
+    except ValueError as error:
+        text = str(error)
+        for name, field in STALL_PARAMETERS.items():
+            text = text.replace(f'StallConfig.{field} ', f'parameter {name} ', 1)
+        raise ValueError(text) from None
+
+
+def _clip(value: float, limit: float) -> float:
+    return max(-limit, min(limit, value))
+
+
+def _direct_effort(gains: PidGains, target: float, measured: float) -> float:
+    """Return the feedforward and proportional terms of the effort (PidController's)."""
+    feedforward = gains.kf * target + math.copysign(gains.static_effort, target)
+    return feedforward + gains.kp * (target - measured)
+
+
+class TunablePidController(PidController):
+    """A wheel's PidController whose gains change while it runs, without a step in effort."""
+
+    def retune(self, gains: PidGains) -> None:
+        """
+        Take new gains; the next effort at the last step's inputs is the last effort.
+
+        Bumpless transfer: the integrator is kept (it holds the effort the wheel's load
+        needs, and is in effort units: a change of ki alone moves nothing) and moved by
+        the change of the feedforward, proportional and derivative terms at the last
+        step's target and measurement; from there it settles where the new gains need it.
+        The derivative state is scaled by the change of kd. Both are clipped to the new
+        max_effort (as update() clips them). With ki = 0 nothing would ever take such an
+        offset away, so the integrator is cleared instead: the effort then steps by the
+        change of the other terms. A controller at rest (reset, or a zero target) has
+        nothing to carry over.
+        """
+        old = self._gains
+        self._gains = gains
+        old_derivative = self._derivative
+        self._derivative = (_clip(old_derivative * gains.kd / old.kd, 2.0 * gains.max_effort)
+                            if old.kd > 0.0 else 0.0)
+        if gains.ki == 0.0:
+            self._integral = 0.0
+            return
+        target, measured = self._prev_target, self._prev_measured
+        if measured is not None and target != 0.0:
+            before = _direct_effort(old, target, measured) + old_derivative
+            after = _direct_effort(gains, target, measured) + self._derivative
+            if math.isfinite(before - after):
+                self._integral += before - after
+        self._integral = _clip(self._integral, gains.max_effort)
+
+
+class TunableStallDetector(StallDetector):
+    """A wheel's StallDetector whose thresholds change while it runs."""
+
+    def reconfigure(self, config: StallConfig) -> None:
+        """
+        Use new thresholds from the next step on.
+
+        The time the fault condition has held so far counts against the new time_s; a
+        latched fault stays latched (only ~/clear_wheel_faults clears it).
+        """
+        self._config = config
+
 
 class VelocityController(Node):
     """Closes the wheel speed loops."""
@@ -67,28 +171,29 @@ class VelocityController(Node):
         config = declare_robot_config(self)
         self.joint_names = list(config.wheel_joint_names)
         self.max_wheel_speed_rad_s = config.max_wheel_speed_rad_s
-        kf_default = 1.0 / config.motor_no_load_speed_rad_s
-        declare = self.declare_parameter
-        gains = PidGains(
-            kp=float(declare('kp', 0.03).value), ki=float(declare('ki', 0.3).value),
-            kd=float(declare('kd', 0.0).value), kf=float(declare('kf', kf_default).value),
-            static_effort=float(declare('static_effort', 0.0).value),
-            max_effort=float(declare('max_effort', 1.0).value),
-            derivative_filter_tau_s=float(declare('derivative_filter_tau_s', 0.02).value),
-            integral_freeze_rate_rad_s2=float(
-                declare('integral_freeze_rate_rad_s2', 10.0).value))
-        stall = StallConfig(
-            effort_threshold=float(declare('stall_effort_threshold', 0.6).value),
-            velocity_threshold_rad_s=float(declare('stall_velocity_threshold_rad_s', 0.5).value),
-            time_s=float(declare('stall_time_s', 0.5).value),
-            target_threshold_rad_s=float(declare('stall_target_threshold_rad_s', 3.0).value))
-        control_rate_hz = positive('control_rate_hz', declare('control_rate_hz', 50.0).value)
-        self.target_timeout_s = positive('target_timeout_s',
-                                         declare('target_timeout_s', 0.5).value)
-        self.measurement_timeout_s = positive('measurement_timeout_s',
-                                              declare('measurement_timeout_s', 0.25).value)
-        self.pids = [PidController(gains) for _ in WHEELS]
-        self.stall_detectors = [StallDetector(stall) for _ in WHEELS]
+        self.runtime = RuntimeParameters(self, READ_ONLY_REASONS)
+        declare = self.runtime.declare
+        defaults = {'kp': 0.03, 'ki': 0.3, 'kd': 0.0,
+                    'kf': 1.0 / config.motor_no_load_speed_rad_s, 'static_effort': 0.0,
+                    'max_effort': 1.0, 'derivative_filter_tau_s': 0.02,
+                    'integral_freeze_rate_rad_s2': 10.0}
+        # PidGains' own words at start-up ('PidGains.kp must be ...').
+        gains = PidGains(**{name: declare(name, float(defaults[name]))
+                            for name in GAIN_PARAMETERS})
+        self.runtime.joint(GAIN_PARAMETERS, check=pid_gains, apply=self._set_gains)
+        stall = stall_config({name: declare(name, default) for name, default in zip(
+            STALL_PARAMETERS, (0.6, 0.5, 0.5, 3.0))})
+        self.runtime.joint(tuple(STALL_PARAMETERS), check=stall_config,
+                           apply=self._set_stall_config)
+        control_rate_hz = positive('control_rate_hz',
+                                   self.declare_parameter('control_rate_hz', 50.0).value)
+        self.target_timeout_s = declare('target_timeout_s', 0.5, positive,
+                                        lambda value: setattr(self, 'target_timeout_s', value))
+        self.measurement_timeout_s = declare(
+            'measurement_timeout_s', 0.25, positive,
+            lambda value: setattr(self, 'measurement_timeout_s', value))
+        self.pids = [TunablePidController(gains) for _ in WHEELS]
+        self.stall_detectors = [TunableStallDetector(stall) for _ in WHEELS]
         self._all_stopped = False       # every wheel held at zero for a faulted one
         self.targets = [0.0] * 4
         self.target_time: Optional[Time] = None
@@ -122,9 +227,22 @@ class VelocityController(Node):
                                              self.on_clear_wheel_faults)
         self.timer = self.create_timer(1.0 / control_rate_hz, self.on_control)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        self.runtime.start()
         self.get_logger().info(
             f'Velocity controller started: kp {gains.kp} ki {gains.ki} kd {gains.kd} '
             f'kf {gains.kf:.4f} at {control_rate_hz} Hz')
+
+    def _set_gains(self, values: Dict[str, float]) -> None:
+        """Give every wheel's controller the new (checked) gains, without a step in effort."""
+        gains = pid_gains(values)
+        for pid in self.pids:
+            pid.retune(gains)
+
+    def _set_stall_config(self, values: Dict[str, float]) -> None:
+        """Give every wheel's stall detector the new (checked) thresholds."""
+        config = stall_config(values)
+        for stall in self.stall_detectors:
+            stall.reconfigure(config)
 
     def on_targets(self, msg: Float32MultiArray) -> None:
         """Take wheel speed targets; malformed or non-finite ones mean stop."""

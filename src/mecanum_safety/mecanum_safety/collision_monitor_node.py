@@ -48,18 +48,31 @@ State: Nav2 publishes nav2_msgs/CollisionMonitorState, which this setup does not
 base_shift_correction and stop_pub_timeout are not supported. ``/diagnostics``
 (diagnostic_msgs/DiagnosticArray, every second): the last decision, OK for DO_NOTHING,
 WARN for slowing (SLOWDOWN, APPROACH, LIMIT), ERROR for STOP, with its reason.
+
+Run-time parameters (``ros2 param set /collision_monitor source_timeout 0.5``; checked
+as at start-up, within the same ranges, logged, see
+:mod:`mecanum_control.runtime_parameters`), taken from the next command on:
+``source_timeout``, ``max_future_stamp_s``, ``min_valid_beam_fraction``,
+``max_identical_scans`` and each zone's scalars ``NAME.min_points``,
+``NAME.slowdown_ratio``, ``NAME.linear_limit``, ``NAME.angular_limit``,
+``NAME.time_before_collision``, ``NAME.simulation_time_step``. Read-only (``ros2 param
+set`` says why): the zones' list, shapes, actions, ``enabled`` and ``visualize`` (the
+safety design, config/collision_monitor.yaml), the sources, frames and topics (wired up
+at start-up) and ``transform_tolerance`` (no effect here).
 """
 
+from dataclasses import replace
 import math
 import re
 import sys
-from typing import List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped, Twist
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
+from mecanum_control.runtime_parameters import RuntimeParameters, WIRING_REASON
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
 from mecanum_safety.collision_monitor import (
@@ -84,6 +97,47 @@ NAV2_ACTION = {'none': 'DO_NOTHING', 'stop': 'STOP', 'slowdown': 'SLOWDOWN',
 INVALID_SOURCE = 'invalid source'
 INVALID_COMMAND = 'invalid command'
 NAME_PATTERN = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+#: The source checks (run-time parameters, checked together by CollisionMonitor).
+SOURCE_CHECKS = (('source_timeout', 2.0), ('min_valid_beam_fraction', 0.5),
+                 ('max_identical_scans', 5), ('max_future_stamp_s', 0.1))
+#: A zone's scalar settings (run-time parameters NAME.KEY) and their defaults.
+ZONE_SETTINGS = (('min_points', 4), ('slowdown_ratio', 0.5), ('linear_limit', 0.5),
+                 ('angular_limit', 0.5), ('time_before_collision', 2.0),
+                 ('simulation_time_step', 0.1))
+#: Why the other parameters are read-only (the zones' and sources' own: see the node).
+READ_ONLY_REASONS = {
+    'polygons': ('the zones are the safety design (config/collision_monitor.yaml), not a '
+                 'tuning: edit the file and restart'),
+    'observation_sources': ('the sources are wired up at start-up: removing one at run '
+                            'time would blind the monitor; edit the file and restart'),
+    'transform_tolerance': ('accepted for Nav2 parameter files only: lookups here never '
+                            'wait, so it has no effect'),
+    'base_frame_id': WIRING_REASON,
+    'cmd_vel_in_topic': WIRING_REASON,
+    'cmd_vel_out_topic': WIRING_REASON,
+    'state_topic': WIRING_REASON,
+}
+ZONE_REASON = ("a zone's shape, action and whether it acts are the safety design "
+               '(config/collision_monitor.yaml), not a tuning: edit the file and restart')
+SOURCE_REASON = ('an observation source is wired up at start-up (its subscription): '
+                 'turning it off at run time would blind the monitor; restart to change it')
+
+
+def zone_parameter_error(name: str, error: ValueError) -> ValueError:
+    """Return a Zone's ValueError (zone 'NAME': key ...) as 'parameter NAME.key ...'."""
+    text = str(error)
+    prefix = f'zone {name!r}: '
+    if text.startswith(prefix):
+        text = f'parameter {name}.{text[len(prefix):]}'
+    return ValueError(text)
+
+
+def source_checks(values: Dict[str, float]) -> CollisionMonitor:
+    """Return a CollisionMonitor without zones checking the source checks' values."""
+    try:
+        return CollisionMonitor([], **values)
+    except ValueError as error:
+        raise ValueError(f'parameter {error}') from None
 
 
 def parse_points(name: str, value) -> List[Tuple[float, float]]:
@@ -155,17 +209,16 @@ class CollisionMonitorNode(Node):
 
     def __init__(self, **node_options):
         super().__init__('collision_monitor', **node_options)
+        self.runtime = RuntimeParameters(self, READ_ONLY_REASONS)
         dynamic = ParameterDescriptor(dynamic_typing=True)
         self.base_frame_id = str(self.declare_parameter('base_frame_id', 'base_link').value)
         cmd_in = str(self.declare_parameter('cmd_vel_in_topic', 'cmd_vel_smoothed').value)
         cmd_out = str(self.declare_parameter('cmd_vel_out_topic', 'cmd_vel').value)
         state_topic = str(self.declare_parameter('state_topic', 'collision_monitor_state')
                           .value)
-        source_timeout = self.declare_parameter('source_timeout', 2.0, dynamic).value
-        checks = {name: self.declare_parameter(name, default, dynamic).value
-                  for name, default in (('min_valid_beam_fraction', 0.5),
-                                        ('max_identical_scans', 5),
-                                        ('max_future_stamp_s', 0.1))}
+        # CollisionMonitor checks them (kind None: as they are, as before).
+        checks = {name: self.runtime.declare(name, default, kind=None)
+                  for name, default in SOURCE_CHECKS}
         tolerance = self.declare_parameter('transform_tolerance', 0.1, dynamic).value
         if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) \
                 or not (math.isfinite(tolerance) and tolerance >= 0.0):
@@ -192,9 +245,18 @@ class CollisionMonitorNode(Node):
             if visualize and zone.enabled:
                 self.visualized.append(zone)
         try:
-            self.monitor = CollisionMonitor(zones, source_timeout, **checks)
+            self.monitor = CollisionMonitor(zones, **checks)
         except ValueError as error:
             raise ValueError(f'parameter {error}') from None
+        self.runtime.joint(tuple(checks), check=source_checks, apply=self._set_source_checks)
+        for zone in zones:
+            self.runtime.joint(tuple(f'{zone.name}.{key}' for key, _ in ZONE_SETTINGS),
+                               check=lambda values, name=zone.name: self._changed_zone(
+                                   name, values),
+                               apply=lambda values, name=zone.name: self._set_zone(
+                                   self._changed_zone(name, values)))
+        self.runtime.add_reasons({f'{name}.*': ZONE_REASON for name in polygon_names})
+        self.runtime.add_reasons({f'{name}.*': SOURCE_REASON for name in source_names})
         self.sources = [self._declare_source(name) for name in source_names]
         self.frames = TransformBuffer()
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
@@ -217,6 +279,7 @@ class CollisionMonitorNode(Node):
         self.cmd_sub = self.create_subscription(Twist, cmd_in, self.on_command, 10)
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.publish_polygons()
+        self.runtime.start()
         zones_text = ', '.join(f'{z.name} ({z.action_type}{"" if z.enabled else ", disabled"})'
                                for z in zones)
         sources_text = ', '.join(f'{s.name} ({s.topic})' for s in self.sources)
@@ -246,20 +309,40 @@ class CollisionMonitorNode(Node):
                 raise ValueError(f'parameter {name}.radius is required for a circle')
             shape['radius'] = radius
         values = {key: declare(key, default) for key, default in (
-            ('action_type', ''), ('min_points', 4), ('slowdown_ratio', 0.5),
-            ('linear_limit', 0.5), ('angular_limit', 0.5), ('time_before_collision', 2.0),
-            ('simulation_time_step', 0.1), ('enabled', True))}
+            ('action_type', ''), ('enabled', True))}
+        # Zone checks them (kind None: as they are, as before).
+        values.update({key: self.runtime.declare(f'{name}.{key}', default, kind=None)
+                       for key, default in ZONE_SETTINGS})
         visualize = declare('visualize', True)
         if not isinstance(visualize, bool):
             raise ValueError(f'parameter {name}.visualize must be a bool, got {visualize!r}')
         try:
             return Zone(name, **shape, **values), visualize
         except ValueError as error:
-            text = str(error)
-            prefix = f'zone {name!r}: '
-            if text.startswith(prefix):
-                text = f'parameter {name}.{text[len(prefix):]}'
-            raise ValueError(text) from None
+            raise zone_parameter_error(name, error) from None
+
+    def _changed_zone(self, name: str, values: Dict) -> Zone:
+        """Return zone name with the settings values (NAME.KEY: value); ValueError if bad."""
+        zone = next(zone for zone in self.monitor.zones if zone.name == name)
+        settings = {key: values[f'{name}.{key}'] for key, _ in ZONE_SETTINGS}
+        try:
+            return replace(zone, **settings)
+        except ValueError as error:
+            raise zone_parameter_error(name, error) from None
+
+    def _set_zone(self, zone: Zone) -> None:
+        """Use a zone's new (checked) settings from the next command on."""
+        self.monitor.zones = [zone if old.name == zone.name else old
+                              for old in self.monitor.zones]
+        self.visualized = [zone if old.name == zone.name else old for old in self.visualized]
+
+    def _set_source_checks(self, values: Dict) -> None:
+        """Use the new (checked) source checks from the next command on."""
+        checked = source_checks(values)
+        self.monitor.source_timeout = checked.source_timeout
+        self.monitor.max_future_stamp_s = checked.max_future_stamp_s
+        self.monitor.min_valid_beam_fraction = checked.min_valid_beam_fraction
+        self.monitor.max_identical_scans = checked.max_identical_scans
 
     def _declare_source(self, name: str) -> _Source:
         """Declare one observation source's parameters."""

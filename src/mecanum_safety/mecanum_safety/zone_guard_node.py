@@ -61,13 +61,25 @@ most every ``STATE_PERIOD_S`` while it does not. ``/diagnostics``
 (diagnostic_msgs/DiagnosticArray, every second): OK (allowing), WARN (scaling, or no
 pose or an unhealthy localisation while idle), ERROR (stopping), with the reason, the
 pose's age, the localisation's health and the margin.
+
+Run-time parameters (``ros2 param set /zone_guard margin_m 0.1``; checked as at
+start-up, within the same ranges, logged, see :mod:`mecanum_control.runtime_parameters`),
+taken from the next command on: ``margin_m``, ``covariance_factor``, ``max_margin_m``
+(>= margin_m: lower margin_m first, or set both in one set_parameters_atomically call),
+``horizon_s``, ``max_position_sigma_m`` (the last pose covariance is judged again at
+once), ``pose_timeout_s``, ``max_localisation_jump_m``, ``max_localisation_jump_rad`` and
+``initial_pose_grace_s``. Read-only (``ros2 param set`` says why): ``zone_file`` and
+``require_zone`` (restart to change the authorised zone: a zone that changes under a
+running robot is not what an operator expects), motor_params.yaml's, and the frames and
+topics (wired up at start-up).
 """
 
 from collections import deque
+from dataclasses import replace
 import math
 import sys
 import time
-from typing import Optional, Tuple
+from typing import Dict, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
@@ -75,6 +87,7 @@ from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, declare_typed
+from mecanum_control.runtime_parameters import RuntimeParameters, WIRING_REASON
 from mecanum_localization.tf_listener import TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
 from mecanum_safety import zone_guard as guard
@@ -102,6 +115,39 @@ PENDING_COVARIANCES = 8
 DIAGNOSTIC_NAME = 'zone_guard: Authorised zone'
 NO_ZONE_FILE = ('no zone file: give zone_file:=<zone file> (see mecanum_safety/zones) or '
                 'zone_file:=unrestricted')
+#: The guard's settings (run-time parameters, checked together by guard.ZoneGuard).
+GUARD_SETTINGS = (('horizon_s', 1.0), ('margin_m', 0.05), ('covariance_factor', 2.0),
+                  ('max_margin_m', 0.5), ('max_position_sigma_m', 0.25))
+#: The localisation-jump detector's settings (run-time, checked by LocalisationJumps).
+JUMP_SETTINGS = (('max_localisation_jump_m', 0.5), ('max_localisation_jump_rad', 0.5),
+                 ('initial_pose_grace_s', 5.0))
+ZONE_REASON = ('restart to change the authorised zone: a zone that changes under a '
+               'running robot is not what an operator expects')
+#: Why the other parameters are read-only (motor_params.yaml's say why themselves).
+READ_ONLY_REASONS = {
+    'zone_file': ZONE_REASON,
+    'require_zone': ZONE_REASON,
+    **{name: WIRING_REASON for name in (
+        'global_frame', 'robot_base_frame', 'odom_frame', 'initial_pose_topic',
+        'pose_covariance_topic', 'cmd_vel_in_topic', 'cmd_vel_out_topic', 'state_topic')},
+}
+
+
+def pose_timeout(name: str, value: float) -> float:
+    """Return pose_timeout_s if finite and > 0, else raise ValueError naming it."""
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f'parameter {name} must be a finite number > 0, got {value!r}')
+    return value
+
+
+def localisation_jumps(values: Dict[str, float]) -> guard.LocalisationJumps:
+    """Return a LocalisationJumps of the jump settings (ValueError naming the bad one)."""
+    try:
+        return guard.LocalisationJumps(values['max_localisation_jump_m'],
+                                       values['max_localisation_jump_rad'],
+                                       values['initial_pose_grace_s'])
+    except ValueError as error:
+        raise ValueError(f'parameter {error}') from None
 
 
 def _components(msg: Twist) -> Tuple[float, ...]:
@@ -131,6 +177,7 @@ class ZoneGuardNode(Node):
     def __init__(self, **node_options):
         super().__init__('zone_guard', **node_options)
         config = declare_robot_config(self)
+        self.runtime = RuntimeParameters(self, READ_ONLY_REASONS)
         self.zone_file = declare_typed(self, 'zone_file', '')
         self.global_frame = declare_typed(self, 'global_frame', 'map').strip('/')
         self.base_frame = declare_typed(self, 'robot_base_frame', 'base_link').strip('/')
@@ -141,19 +188,14 @@ class ZoneGuardNode(Node):
         if self.global_frame == self.base_frame:
             raise ValueError(f'parameters global_frame and robot_base_frame must differ, '
                              f'both are {self.global_frame!r}')
-        numbers = {name: declare_typed(self, name, default) for name, default in (
-            ('horizon_s', 1.0), ('margin_m', 0.05), ('covariance_factor', 2.0),
-            ('max_margin_m', 0.5), ('max_position_sigma_m', 0.25))}
+        numbers = {name: self.runtime.declare(name, default) for name, default in GUARD_SETTINGS}
         self.require_zone = declare_typed(self, 'require_zone', False)
         self.odom_frame = declare_typed(self, 'odom_frame', 'odom').strip('/')
-        jumps = {name: declare_typed(self, name, default) for name, default in (
-            ('max_localisation_jump_m', 0.5), ('max_localisation_jump_rad', 0.5),
-            ('initial_pose_grace_s', 5.0))}
+        jumps = {name: self.runtime.declare(name, default) for name, default in JUMP_SETTINGS}
         initial_pose_topic = declare_typed(self, 'initial_pose_topic', 'initialpose')
-        self.pose_timeout_s = declare_typed(self, 'pose_timeout_s', 0.5)
-        if not (math.isfinite(self.pose_timeout_s) and self.pose_timeout_s > 0.0):
-            raise ValueError(f'parameter pose_timeout_s must be a finite number > 0, got '
-                             f'{self.pose_timeout_s!r}')
+        self.pose_timeout_s = self.runtime.declare(
+            'pose_timeout_s', 0.5, pose_timeout,
+            lambda value: setattr(self, 'pose_timeout_s', value))
         covariance_topic = declare_typed(self, 'pose_covariance_topic', 'amcl_pose')
         cmd_in = declare_typed(self, 'cmd_vel_in_topic', 'cmd_vel_monitored')
         cmd_out = declare_typed(self, 'cmd_vel_out_topic', 'cmd_vel_safe')
@@ -174,17 +216,16 @@ class ZoneGuardNode(Node):
             self.guard = guard.ZoneGuard(zone, config.footprint_radius_m, **numbers)
         except ValueError as error:
             raise ValueError(f'parameter {error}') from None
-        try:
-            self.jumps = guard.LocalisationJumps(jumps['max_localisation_jump_m'],
-                                                 jumps['max_localisation_jump_rad'],
-                                                 jumps['initial_pose_grace_s'])
-        except ValueError as error:
-            raise ValueError(f'parameter {error}') from None
+        self.jumps = localisation_jumps(jumps)
+        self.runtime.joint(tuple(numbers), check=self._changed_guard,
+                           apply=lambda values: self._set_guard(self._changed_guard(values)))
+        self.runtime.joint(tuple(jumps), check=localisation_jumps, apply=self._set_jumps)
         self.frames = TransformBuffer()
         self._warnings = KeyedThrottle(WARNING_PERIOD_S)
         self._state_logs = KeyedThrottle(STATE_LOG_PERIOD_S)
         self.sigma_xy_m = 0.0          # no covariance heard yet: margin_m alone
         self.covariance = None         # the last pose covariance heard (36 values)
+        self._last_pose = None         # its (position, orientation, covariance)
         self.sigma_used_m = 0.0        # sigma toward the border of the last command
         self.covariance_count = 0
         # What is wrong with the localisation (None: healthy, or nothing heard yet).
@@ -222,6 +263,7 @@ class ZoneGuardNode(Node):
             if initial_pose_topic else None)
         self.cmd_sub = self.create_subscription(Twist, cmd_in, self.on_command, 10)
         self.diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
+        self.runtime.start()
         if self.zone_missing:
             zone_text = 'NO ZONE FILE: every command is stopped'
         elif self.unrestricted:
@@ -247,6 +289,35 @@ class ZoneGuardNode(Node):
                 'command is stopped. Give the authorised zone, zone_file:=/path/to/zone.yaml '
                 '(a zone file in the map frame, like mecanum_safety zones/apartment.yaml), '
                 'or drive without one on purpose: zone_file:=unrestricted')
+
+    # -- run-time parameters ------------------------------------------------------------
+
+    def _changed_guard(self, values: Dict[str, float]) -> guard.ZoneGuard:
+        """Return the guard with the settings values; ValueError naming a bad one."""
+        try:
+            return replace(self.guard, **values)
+        except ValueError as error:
+            raise ValueError(f'parameter {error}') from None
+
+    def _set_guard(self, new_guard: guard.ZoneGuard) -> None:
+        """Use new (checked) settings; judge the last pose covariance again with them."""
+        self.guard = new_guard
+        if self._last_pose is None:
+            return
+        previous, self.localisation = (self.localisation,
+                                       self.guard.localisation_problem(*self._last_pose))
+        if (previous is None) != (self.localisation is None):
+            self.get_logger().info(
+                'localisation ' + (f'unhealthy: {self.localisation.text}'
+                                   if self.localisation is not None else 'healthy again')
+                + f' with max_position_sigma_m {self.guard.max_position_sigma_m:g}')
+
+    def _set_jumps(self, values: Dict[str, float]) -> None:
+        """Use new (checked) jump thresholds; a latched jump stays latched."""
+        checked = localisation_jumps(values)
+        self.jumps.max_jump_m = checked.max_jump_m
+        self.jumps.max_jump_rad = checked.max_jump_rad
+        self.jumps.grace_s = checked.grace_s
 
     # -- helpers ------------------------------------------------------------------------
 
@@ -321,6 +392,7 @@ class ZoneGuardNode(Node):
         sigma = guard.sigma_xy(msg.pose.covariance)
         self.sigma_xy_m = sigma
         self.covariance = tuple(msg.pose.covariance)
+        self._last_pose = (position, orientation, self.covariance)
         self.covariance_count += 1
         problem = self.guard.localisation_problem(position, orientation, msg.pose.covariance)
         previous, self.localisation = self.localisation, problem

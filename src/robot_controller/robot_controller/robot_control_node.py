@@ -65,12 +65,27 @@ motor_params.yaml, which launch files pass; the installed file's value by defaul
 ``zone_margin_m`` (0.05, >= 0); ``global_frame`` ('map'); ``robot_base_frame``
 ('base_link'); ``pose_timeout_s`` (1.0, > 0); ``chain_output_topic`` ('cmd_vel_safe';
 '' = do not watch the chain, never stop short); ``blocked_speed_ratio`` (0.1, in (0, 1));
-``blocked_time_s`` (0.5, > 0); ``chain_start_timeout_s`` (5.0, >= blocked_time_s).
+``blocked_time_s`` (0.5, > 0); ``chain_start_timeout_s`` (5.0, >= blocked_time_s). The
+speeds and durations must be > 0, a default within its maximum (``linear_speed_mps`` <=
+``max_linear_speed_mps``, ``angular_speed_radps`` <= ``max_angular_speed_radps``,
+``default_duration_s`` <= ``max_duration_s``).
+
+Run-time parameters (``ros2 param set /robot_controller linear_speed_mps 0.3``; checked
+as at start-up, logged, see :mod:`mecanum_control.runtime_parameters`): the six speeds
+and durations (from the next command on), ``publish_rate_hz`` (the timer follows at
+once), ``zone_margin_m`` and ``pose_timeout_s`` (from the next zone check on),
+``blocked_speed_ratio``, ``blocked_time_s`` and ``chain_start_timeout_s`` (at once, also
+for the running motion; set blocked_time_s above chain_start_timeout_s together with it,
+in one set_parameters_atomically call, or raise chain_start_timeout_s first). The others
+are read-only, ``ros2 param set`` says why: ``zone_file`` (restart to change the
+authorised zone), ``footprint_radius_m`` (motor_params.yaml's), the frames and
+``chain_output_topic`` (wired up at start-up).
 """
 
+from dataclasses import fields
 import math
 import sys
-from typing import Optional
+from typing import Dict, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist
@@ -78,6 +93,7 @@ from mecanum_control.messages import diagnostic_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_typed
 from mecanum_control.robot_config import default_config_path, parameters_from_yaml
+from mecanum_control.runtime_parameters import RuntimeParameters, WIRING_REASON
 from mecanum_localization.tf_listener import TransformListener
 from mecanum_localization.transforms import TransformBuffer, TransformError
 from mecanum_safety.zone import load_zone_file
@@ -93,12 +109,69 @@ CLOSE_ACK_TIMEOUT_S = 0.5
 #: The chain's stages whose state topics (std_msgs/String) explain a stop.
 STATE_TOPICS = {'collision_monitor': 'collision_monitor_state',
                 'zone_guard': 'zone_guard_state'}
+#: The parameters of CommandLimits (run-time, checked together by check_command_limits).
+LIMIT_PARAMETERS = tuple(field.name for field in fields(CommandLimits))
+#: The stop-short watch's parameters (run-time, checked together by blocked_detector).
+BLOCKED_PARAMETERS = ('blocked_speed_ratio', 'blocked_time_s', 'chain_start_timeout_s')
+#: Why the other parameters are read-only (footprint_radius_m: motor_params.yaml's).
+READ_ONLY_REASONS = {
+    'zone_file': ('restart to change the authorised zone: a zone that changes under a '
+                  'running robot is not what an operator expects'),
+    'global_frame': WIRING_REASON,
+    'robot_base_frame': WIRING_REASON,
+    'chain_output_topic': WIRING_REASON,
+}
 
 
 def _positive(name: str, value: float) -> float:
     if not (math.isfinite(value) and value > 0.0):
         raise ValueError(f'parameter {name} must be finite and > 0, got {value}')
     return value
+
+
+def _positive_rate(name: str, value: float) -> float:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f'{name} must be positive and finite, got {value}')
+    return value
+
+
+def _non_negative(name: str, value: float) -> float:
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f'parameter {name} must be finite and >= 0, got {value}')
+    return value
+
+
+def check_command_limits(limits: CommandLimits) -> CommandLimits:
+    """
+    Return limits if every speed and duration is finite and > 0 and within its maximum.
+
+    Raises ValueError naming the parameter ('parameter linear_speed_mps must be > 0, got
+    -1.0').
+    """
+    for name in LIMIT_PARAMETERS:
+        value = getattr(limits, name)
+        if not math.isfinite(value):
+            raise ValueError(f'parameter {name} must be finite, got {value}')
+        if not value > 0.0:
+            raise ValueError(f'parameter {name} must be > 0, got {value}')
+    for default, maximum in (('linear_speed_mps', 'max_linear_speed_mps'),
+                             ('angular_speed_radps', 'max_angular_speed_radps'),
+                             ('default_duration_s', 'max_duration_s')):
+        if getattr(limits, default) > getattr(limits, maximum):
+            raise ValueError(f'parameter {default} ({getattr(limits, default):g}) must be <= '
+                             f'{maximum} ({getattr(limits, maximum):g})')
+    return limits
+
+
+def blocked_detector(values: Dict[str, float]) -> BlockedDetector:
+    """Return a BlockedDetector of the stop-short parameters (ValueError naming the bad one)."""
+    try:
+        return BlockedDetector(values['blocked_speed_ratio'], values['blocked_time_s'],
+                               values['chain_start_timeout_s'])
+    except ValueError as error:   # the detector says start_timeout_s
+        text = str(error)
+        text = f'chain_{text}' if text.startswith('start_timeout_s') else text
+        raise ValueError(f'parameter {text}') from None
 
 
 def _frame(name: str, value: str) -> str:
@@ -113,23 +186,16 @@ class RobotController(Node):
 
     def __init__(self, **node_options):
         super().__init__('robot_controller', **node_options)
+        self.runtime = RuntimeParameters(self, READ_ONLY_REASONS)
         defaults = CommandLimits()
-        self.limits = CommandLimits(
-            linear_speed_mps=self.declare_parameter(
-                'linear_speed_mps', defaults.linear_speed_mps).value,
-            angular_speed_radps=self.declare_parameter(
-                'angular_speed_radps', defaults.angular_speed_radps).value,
-            max_linear_speed_mps=self.declare_parameter(
-                'max_linear_speed_mps', defaults.max_linear_speed_mps).value,
-            max_angular_speed_radps=self.declare_parameter(
-                'max_angular_speed_radps', defaults.max_angular_speed_radps).value,
-            default_duration_s=self.declare_parameter(
-                'default_duration_s', defaults.default_duration_s).value,
-            max_duration_s=self.declare_parameter(
-                'max_duration_s', defaults.max_duration_s).value)
-        publish_rate_hz = self.declare_parameter('publish_rate_hz', 20.0).value
-        if not publish_rate_hz > 0.0:
-            raise ValueError(f'publish_rate_hz must be positive, got {publish_rate_hz}')
+        limits = {name: self.runtime.declare(name, getattr(defaults, name))
+                  for name in LIMIT_PARAMETERS}
+        self.runtime.joint(LIMIT_PARAMETERS,
+                           check=lambda values: check_command_limits(CommandLimits(**values)),
+                           apply=self._set_limits)
+        self.limits = CommandLimits(**limits)
+        publish_rate_hz = self.runtime.declare('publish_rate_hz', 20.0, _positive_rate,
+                                               self._set_publish_rate)
         self._declare_zone_parameters()
         self._declare_chain_parameters()
 
@@ -160,6 +226,7 @@ class RobotController(Node):
                     String, topic, lambda msg, stage=stage: self.detector.on_state(
                         stage, msg.data), 10)
         self.timer = self.create_timer(1.0 / publish_rate_hz, self.on_timer)
+        self.runtime.start()
         zone_text = (f'zone {self.zone_file} (footprint {self.footprint_radius_m:g} m + '
                      f'margin {self.zone_margin_m:g} m)' if self.zone is not None
                      else 'no authorised zone')
@@ -178,15 +245,15 @@ class RobotController(Node):
         self.footprint_radius_m = _positive(
             'footprint_radius_m', declare_typed(self, 'footprint_radius_m',
                                                 float(radius_default), float))
-        self.zone_margin_m = declare_typed(self, 'zone_margin_m', 0.05)
-        if not (math.isfinite(self.zone_margin_m) and self.zone_margin_m >= 0.0):
-            raise ValueError(f'parameter zone_margin_m must be finite and >= 0, got '
-                             f'{self.zone_margin_m}')
+        self.zone_margin_m = self.runtime.declare(
+            'zone_margin_m', 0.05, _non_negative,
+            lambda value: setattr(self, 'zone_margin_m', value))
         self.global_frame = _frame('global_frame', declare_typed(self, 'global_frame', 'map'))
         self.base_frame = _frame('robot_base_frame',
                                  declare_typed(self, 'robot_base_frame', 'base_link'))
-        self.pose_timeout_s = _positive('pose_timeout_s',
-                                        declare_typed(self, 'pose_timeout_s', 1.0))
+        self.pose_timeout_s = self.runtime.declare(
+            'pose_timeout_s', 1.0, _positive,
+            lambda value: setattr(self, 'pose_timeout_s', value))
         # ZoneError (a ValueError) names the file and what is wrong with it.
         self.zone = (load_zone_file(self.zone_file)   # 'unrestricted': no zone, on purpose
                      if self.zone_file and self.zone_file != 'unrestricted' else None)
@@ -198,13 +265,27 @@ class RobotController(Node):
         """Declare and check the parameters of the stop-short watch of the chain."""
         self.chain_output_topic = declare_typed(
             self, 'chain_output_topic', 'cmd_vel_safe').strip()
-        ratio = declare_typed(self, 'blocked_speed_ratio', 0.1)
-        blocked_time_s = declare_typed(self, 'blocked_time_s', 0.5)
-        start_timeout_s = declare_typed(self, 'chain_start_timeout_s', 5.0)
-        try:
-            self.detector = BlockedDetector(ratio, blocked_time_s, start_timeout_s)
-        except ValueError as error:
-            raise ValueError(f'parameter {error}') from None
+        values = {name: self.runtime.declare(name, default) for name, default in zip(
+            BLOCKED_PARAMETERS, (0.1, 0.5, 5.0))}
+        self.runtime.joint(BLOCKED_PARAMETERS, check=blocked_detector,
+                           apply=self._set_blocked_parameters)
+        self.detector = blocked_detector(values)
+
+    def _set_limits(self, values: Dict[str, float]) -> None:
+        """Use new (checked) speeds and durations from the next command on."""
+        self.limits = CommandLimits(**values)
+
+    def _set_publish_rate(self, publish_rate_hz: float) -> None:
+        """Publish a running motion's twist at publish_rate_hz from now on."""
+        self.timer.timer_period_ns = round(1e9 / publish_rate_hz)
+        self.timer.reset()
+
+    def _set_blocked_parameters(self, values: Dict[str, float]) -> None:
+        """Use new (checked) stop-short settings at once, also for the running motion."""
+        checked = blocked_detector(values)
+        self.detector.blocked_speed_ratio = checked.blocked_speed_ratio
+        self.detector.blocked_time_s = checked.blocked_time_s
+        self.detector.start_timeout_s = checked.start_timeout_s
 
     # -- commands -----------------------------------------------------------------------
 

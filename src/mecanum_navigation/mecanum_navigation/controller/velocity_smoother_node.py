@@ -19,18 +19,29 @@ Nav2), ``deadband_velocity``, ``velocity_timeout`` (s), ``odom_topic`` ('odom'),
 ``odom_duration`` (s: CLOSED_LOOP uses the mean odometry twist of this last span, as
 Nav2's odometry smoother). Limits default to motor_params.yaml. ``enable_stamped_cmd_vel``
 is accepted only as false (Twist, not TwistStamped).
+
+Run-time parameters (``ros2 param set /velocity_smoother max_velocity "[0.5, 0.4,
+2.0]"``; checked as at start-up, logged, see :mod:`mecanum_control.runtime_parameters`):
+``max_velocity``, ``min_velocity``, ``max_accel``, ``max_decel``, ``deadband_velocity``,
+``velocity_timeout``, ``scale_velocities``, ``smoothing_frequency`` (the timer follows at
+once) and ``odom_duration``, from the next step on; the ramp goes on from the last
+output, so a new limit brings no jump. The twists it smooths are still limited by the
+command chain (twist_mux, with motor_params.yaml's limits) after it. Read-only
+(``ros2 param set`` says why): ``feedback``, ``odom_topic`` and
+``enable_stamped_cmd_vel`` (wired up at start-up).
 """
 
 from collections import deque
 import math
 import sys
-from typing import Deque, Optional, Tuple
+from typing import Deque, Dict, Optional, Tuple
 
 from geometry_msgs.msg import Twist
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
-from mecanum_control.parameters import declare_number, positive
+from mecanum_control.parameters import positive
 from mecanum_control.robot_config import default_config_path, load_robot_config
+from mecanum_control.runtime_parameters import RuntimeParameters, WIRING_REASON
 from mecanum_navigation.controller.velocity_smoother import SmootherParams, VelocitySmoother
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
@@ -40,11 +51,27 @@ from rclpy.node import Node
 WARNING_PERIOD_S = 2.0
 ARRAY_PARAMETERS = ('max_velocity', 'min_velocity', 'max_accel', 'max_decel',
                     'deadband_velocity')
+#: SmootherParams' run-time parameters (all but feedback, which wires up odom_topic).
+SMOOTHER_PARAMETERS = ('smoothing_frequency', 'scale_velocities', 'velocity_timeout',
+                       *ARRAY_PARAMETERS)
+READ_ONLY_REASONS = {
+    'feedback': WIRING_REASON,
+    'odom_topic': WIRING_REASON,
+    'enable_stamped_cmd_vel': WIRING_REASON,
+}
 
 
 def _seconds(stamp) -> float:
     """Return a builtin_interfaces/Time in seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def smoother_params(values: Dict) -> SmootherParams:
+    """Return SmootherParams of the parameters' values (ValueError naming the bad one)."""
+    try:
+        return SmootherParams(**values)
+    except ValueError as error:
+        raise ValueError(f'parameter {error}') from None
 
 
 class VelocitySmootherNode(Node):
@@ -54,20 +81,22 @@ class VelocitySmootherNode(Node):
         super().__init__('velocity_smoother', **node_options)
         config = load_robot_config(default_config_path())
         defaults = SmootherParams.from_robot_config(config)
+        self.runtime = RuntimeParameters(self, READ_ONLY_REASONS)
         dynamic = ParameterDescriptor(dynamic_typing=True)
-        values = {name: self.declare_parameter(name, getattr(defaults, name), dynamic).value
-                  for name in ('smoothing_frequency', 'scale_velocities', 'feedback',
-                               'velocity_timeout')}
-        for name in ARRAY_PARAMETERS:
-            default = None if name == 'min_velocity' else list(getattr(defaults, name))
-            values[name] = self.declare_parameter(name, default, dynamic).value
-        try:
-            params = SmootherParams(**values)
-        except ValueError as error:
-            raise ValueError(f'parameter {error}') from None
+        values = {'feedback': self.declare_parameter('feedback', defaults.feedback,
+                                                     dynamic).value}
+        for name in SMOOTHER_PARAMETERS:   # SmootherParams checks them, as they are
+            default = getattr(defaults, name)
+            default = (None if name == 'min_velocity' else
+                       list(default) if name in ARRAY_PARAMETERS else default)
+            values[name] = self.runtime.declare(name, default, kind=None)
+        params = smoother_params(values)
+        self.feedback = params.feedback
+        self.runtime.joint(SMOOTHER_PARAMETERS, check=self._changed_params,
+                           apply=self._set_params)
         odom_topic = str(self.declare_parameter('odom_topic', 'odom').value)
-        self.odom_duration = positive('odom_duration',
-                                      declare_number(self, 'odom_duration', 0.1))
+        self.odom_duration = self.runtime.declare(
+            'odom_duration', 0.1, positive, lambda value: setattr(self, 'odom_duration', value))
         if self.declare_parameter('enable_stamped_cmd_vel', False).value:
             raise ValueError('parameter enable_stamped_cmd_vel: only false (geometry_msgs/'
                              'Twist) is supported')
@@ -80,11 +109,24 @@ class VelocitySmootherNode(Node):
         self.odom_sub = (self.create_subscription(Odometry, odom_topic, self.on_odom, 10)
                          if params.feedback == 'CLOSED_LOOP' else None)
         self.timer = self.create_timer(1.0 / params.smoothing_frequency, self.on_timer)
+        self.runtime.start()
         self.get_logger().info(
             f'Velocity smoother started: {self.cmd_sub.topic_name} -> '
             f'{self.cmd_pub.topic_name} at {params.smoothing_frequency:g} Hz, '
             f'{params.feedback}, max_accel {list(params.max_accel)}, max_decel '
             f'{list(params.max_decel)}, velocity_timeout {params.velocity_timeout:g} s')
+
+    def _changed_params(self, values: Dict) -> SmootherParams:
+        """Return the smoother's parameters with values (ValueError naming a bad one)."""
+        return smoother_params(dict(values, feedback=self.feedback))
+
+    def _set_params(self, values: Dict) -> None:
+        """Use new (checked) limits from the next step on; the timer follows its rate."""
+        params = self._changed_params(values)
+        if params.smoothing_frequency != self.smoother.params.smoothing_frequency:
+            self.timer.timer_period_ns = round(1e9 / params.smoothing_frequency)
+            self.timer.reset()
+        self.smoother.params = params
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
