@@ -87,3 +87,23 @@ def test_a_second_ctrl_c_while_closing_does_not_cut_the_close_short(ros_env, tmp
     assert process.returncode == 0
     assert 'closed after' in stdout
     assert 'Traceback' not in stderr
+
+
+def test_a_close_that_hangs_is_left_after_the_close_timeout(ros_env, tmp_path):
+    """A close stuck for 30 s: the process leaves after CLOSE_TIMEOUT_S (3 s), saying so."""
+    from mecanum_control.node_main import CLOSE_TIMEOUT_S
+    script = tmp_path / 'slow_node.py'
+    script.write_text(NODE)
+    process = subprocess.Popen([sys.executable, str(script), '30'], env=ros_env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'busy'
+        process.send_signal(signal.SIGINT)
+        assert process.stdout.readline().strip() == 'closing'
+        stdout, stderr = process.communicate(timeout=CLOSE_TIMEOUT_S + 10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0
+    assert 'closed after' not in stdout                  # left during the hang
+    assert f'closing took more than {CLOSE_TIMEOUT_S:g} s' in stderr
