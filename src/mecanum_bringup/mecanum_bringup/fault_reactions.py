@@ -245,18 +245,25 @@ def _judge_rest_until(reaction: Reaction, truth: Any,
                      + ('' if math.isinf(end) else f' to +{end - began:.1f} s'))
 
 
-def _first_motion(truth: Any, start_s: float, end_s: float,
-                  turning_allowed: bool) -> Optional[Tuple[float, float, str]]:
-    """Return (t, speed, unit) of the first motion between start_s and end_s, or None."""
+def _rates(truth: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return each interval's end t, length dt, speed (m/s) and turn rate (rad/s)."""
     track = np.asarray(truth, dtype=np.float64).reshape(-1, 4)
-    if len(track) < 2 or end_s <= start_s:
-        return None
+    if len(track) < 2:
+        return (np.zeros(0),) * 4
     dt = np.diff(track[:, 0])
     ok = dt > 1e-6
-    t = track[1:, 0][ok]
     dt = dt[ok]
     speed = np.hypot(np.diff(track[:, 1])[ok], np.diff(track[:, 2])[ok]) / dt
     turn = np.abs(np.angle(np.exp(1j * np.diff(track[:, 3])[ok]))) / dt
+    return track[1:, 0][ok], dt, speed, turn
+
+
+def _first_motion(truth: Any, start_s: float, end_s: float,
+                  turning_allowed: bool) -> Optional[Tuple[float, float, str]]:
+    """Return (t, speed, unit) of the first motion between start_s and end_s, or None."""
+    if end_s <= start_s:
+        return None
+    t, dt, speed, turn = _rates(truth)
     # A sample judges the interval before it: both ends within the window.
     inside = (t - dt >= start_s - 1e-9) & (t <= end_s + 1e-9)
     for index in np.flatnonzero(inside):
@@ -279,19 +286,12 @@ def _healthy_again_s(chain_states: Sequence[Tuple[float, str, str]], node: str,
 
 def _first_rest_s(truth: Any, after_s: float, turning_allowed: bool) -> Optional[float]:
     """Return the end time of the first interval at rest after after_s, or None."""
-    track = np.asarray(truth, dtype=np.float64).reshape(-1, 4)
-    track = track[track[:, 0] >= after_s - 1e-9]
-    if len(track) < 2:
-        return None
-    dt = np.diff(track[:, 0])
-    ok = dt > 1e-6
-    speed = np.hypot(np.diff(track[:, 1])[ok], np.diff(track[:, 2])[ok]) / dt[ok]
-    turn = np.abs(np.angle(np.exp(1j * np.diff(track[:, 3])[ok]))) / dt[ok]
-    rest = speed < REST_SPEED_M_S
+    t, dt, speed, turn = _rates(truth)
+    rest = (t - dt >= after_s - 1e-9) & (speed < REST_SPEED_M_S)
     if not turning_allowed:
         rest &= turn < REST_TURN_RAD_S
     index = np.flatnonzero(rest)
-    return float(track[1:, 0][ok][index[0]]) if len(index) else None
+    return float(t[index[0]]) if len(index) else None
 
 
 def _travel_m(truth: Any, start_s: float, end_s: float) -> float:
