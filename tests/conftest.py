@@ -11,6 +11,7 @@ import re
 import signal
 import subprocess
 import sys
+import termios
 import threading
 import time
 import uuid
@@ -75,6 +76,66 @@ class OutputProcess:
     def wait_for_line(self, pattern: str, timeout: float = 20.0) -> re.Match:
         """Wait until an output line matches pattern; return the match."""
         return self.wait_for_line_at(pattern, timeout)[1]
+
+
+class TerminalProcess:
+    """A command as typed in a shell: a process group of its own, a pty as stdin."""
+
+    def __init__(self, command: list, env: dict, cwd=None):
+        """Start it; with a pseudo-terminal as stdin (teleop reads keys from it)."""
+        self.master, self.slave = os.openpty()
+        self.terminal_settings = termios.tcgetattr(self.slave)
+        self.process = subprocess.Popen(
+            command, stdin=self.slave, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            text=True, env=env, cwd=cwd, start_new_session=True)
+        self.lines = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip('\n'))
+
+    def output(self) -> str:
+        """Return everything it printed so far."""
+        return '\n'.join(self.lines)
+
+    def wait_for_output(self, pattern: str, timeout: float = 30.0) -> None:
+        """Wait until a line matches pattern; fail with the output if it exits first."""
+        deadline = time.monotonic() + timeout
+        while not re.search(pattern, self.output()):
+            assert self.process.poll() is None, f'exited:\n{self.output()}'
+            assert time.monotonic() < deadline, f'no {pattern!r} in:\n{self.output()}'
+            time.sleep(0.02)
+
+    def type_keys(self, keys: str) -> None:
+        """Type keys on its terminal."""
+        os.write(self.master, keys.encode())
+
+    def terminal_restored(self) -> bool:
+        """Tell whether the terminal settings are those from before the process started."""
+        return termios.tcgetattr(self.slave) == self.terminal_settings
+
+    def stop(self) -> int:
+        """Ctrl-C, as in the shell; return the exit code."""
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGINT)
+            try:
+                self.process.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+        self.close()
+        return self.process.returncode
+
+    def close(self) -> None:
+        """Kill the process group if it still runs; close the terminal."""
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGKILL)
+            self.process.wait(timeout=5)
+        if self.master is not None:
+            os.close(self.master)
+            os.close(self.slave)
+            self.master = self.slave = None
 
 
 class RunningSystem(OutputProcess):

@@ -5,8 +5,9 @@ The second seed document builds a workspace (step 1: here `make setup`, already 
 the tests), a robot_controller package with robot_control_node (step 2), a
 robot_simulation package with simulation_node (step 3), a Docker image (step 4:
 tests/test_docker.py) and runs the two nodes with `ros2 run` in two shells (step 5).
-Here step 5 runs as written, `./mecanum run` being the pip setup's `ros2 run` (the same
-executables from install/), each node in its own process in a leased ROS domain: a
+Here step 5 runs as written, with the real `ros2 run` that make setup builds (the
+README's commands after `source tools/env.sh`; `./mecanum run` only where make setup
+could not build `ros2`), each node in its own process in a leased ROS domain: a
 'forward' on control_command must move the simulated robot, whichever node starts
 first, and the keyboard teleop (the robot's usual `ros2 run` teleop) must reach that
 simulation too. The seed's topics: control_command (std_msgs/String) -> robot_controller
@@ -14,79 +15,33 @@ simulation too. The seed's topics: control_command (std_msgs/String) -> robot_co
 "Position: x=.., y=.., theta=..").
 """
 
-import os
 from pathlib import Path
 import re
-import signal
+import shutil
 import subprocess
-import threading
 import time
 
 import pytest
 from std_msgs.msg import String
+from tests.conftest import TerminalProcess
 
 pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
+#: The README's `ros2 run`; the pip setup's own launcher where `ros2` could not be built.
+ROS2 = shutil.which('ros2')
+RUN_COMMAND = [ROS2, 'run'] if ROS2 else [str(REPO / 'mecanum'), 'run']
 POSITION = re.compile(r'Position: x=(-?\d+\.\d+), y=(-?\d+\.\d+), theta=(-?\d+\.\d+)')
-
-
-class RosRun:
-    """`./mecanum run PACKAGE EXECUTABLE` in a process group of its own (stdin: a pty)."""
-
-    def __init__(self, env, package, executable, *args):
-        """Start it; with a pseudo-terminal as stdin (teleop reads keys from it)."""
-        self.master, slave = os.openpty()
-        self.process = subprocess.Popen(
-            [str(REPO / 'mecanum'), 'run', package, executable, *args], stdin=slave,
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-            cwd=str(REPO), start_new_session=True)
-        os.close(slave)
-        self.lines = []
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self):
-        for line in self.process.stdout:
-            self.lines.append(line.rstrip('\n'))
-
-    def output(self) -> str:
-        """Return everything it printed so far."""
-        return '\n'.join(self.lines)
-
-    def wait_for_output(self, pattern: str, timeout: float = 30.0) -> None:
-        """Wait until a line matches pattern; fail with the output if it exits first."""
-        deadline = time.monotonic() + timeout
-        while not re.search(pattern, self.output()):
-            assert self.process.poll() is None, f'exited:\n{self.output()}'
-            assert time.monotonic() < deadline, f'no {pattern!r} in:\n{self.output()}'
-            time.sleep(0.02)
-
-    def type_keys(self, keys: str) -> None:
-        """Type keys on its terminal."""
-        os.write(self.master, keys.encode())
-
-    def stop(self) -> int:
-        """Ctrl-C, as in the shell; return the exit code."""
-        if self.process.poll() is None:
-            os.killpg(self.process.pid, signal.SIGINT)
-            try:
-                self.process.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait()
-        if self.master is not None:
-            os.close(self.master)
-            self.master = None
-        return self.process.returncode
 
 
 @pytest.fixture
 def ros_run(ros_env):
-    """Start `./mecanum run` processes in the test's domain; Ctrl-C them at the end."""
+    """Start `ros2 run` processes in the test's domain; Ctrl-C them at the end."""
     started = []
 
-    def run(*args) -> RosRun:
-        process = RosRun(ros_env, *args)
+    def run(package, executable, *args) -> TerminalProcess:
+        process = TerminalProcess([*RUN_COMMAND, package, executable, *args], ros_env,
+                                  cwd=REPO)
         started.append(process)
         return process
     yield run
@@ -154,3 +109,16 @@ def test_the_keyboard_teleop_reaches_the_seed_simulation(ros_run, test_node):
     x, y, _ = position(status)
     assert x > 0.1 and abs(y) < 1e-6
     assert teleop.stop() == 0 and simulation.stop() == 0
+
+
+def test_seed_1_verify_package_lists_and_runs_the_motor_controller(ros_run, ros_env):
+    # The first seed's "Verify Package": `ros2 pkg list | grep mecanum_control`, then
+    # `ros2 run mecanum_control motor_controller` runs the node (Ctrl-C ends it, exit 0).
+    if ROS2 is not None:
+        listed = subprocess.run([ROS2, 'pkg', 'list'], env=ros_env, capture_output=True,
+                                text=True, timeout=60)
+        assert listed.returncode == 0, listed.stderr
+        assert 'mecanum_control' in listed.stdout.split(), listed.stdout
+    motor_controller = ros_run('mecanum_control', 'motor_controller')
+    motor_controller.wait_for_output(r'Motor controller started')
+    assert motor_controller.stop() == 0, motor_controller.output()

@@ -10,7 +10,6 @@ import os
 import signal
 import subprocess
 import sys
-import termios
 import threading
 import time
 
@@ -20,6 +19,7 @@ from mecanum_control.teleop_keys import QUIT_KEY
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
+from tests.conftest import TerminalProcess
 
 SPEED = 0.3
 TURN = 1.0
@@ -87,41 +87,14 @@ def twist_of(msg) -> tuple:
     return (twist.linear.x, twist.linear.y, twist.angular.z)
 
 
-class TeleopProcess:
+class TeleopProcess(TerminalProcess):
     """The teleop_keyboard node in its own process, its stdin a pseudo-terminal."""
 
     def __init__(self, domain_id: int, *parameters: str):
         """Start the node with parameters (name:=value)."""
-        self.master, self.slave = os.openpty()
-        self.terminal_settings = termios.tcgetattr(self.slave)
         ros_args = ['--ros-args'] + [arg for p in parameters for arg in ('-p', p)]
-        self.process = subprocess.Popen(
-            [sys.executable, '-m', MODULE, *ros_args], stdin=self.slave,
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            env=isolated_environment(os.environ, domain_id), start_new_session=True)
-        self.lines = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self):
-        for line in self.process.stdout:
-            self.lines.append(line.rstrip('\n'))
-
-    def output(self) -> str:
-        """Everything the node printed so far."""
-        return '\n'.join(self.lines)
-
-    def wait_for_output(self, text: str, timeout: float = 15.0) -> None:
-        """Wait until the node printed text (it prints the help once in raw mode)."""
-        deadline = time.monotonic() + timeout
-        while text not in self.output():
-            assert self.process.poll() is None, f'node exited:\n{self.output()}'
-            assert time.monotonic() < deadline, f'no {text!r} in:\n{self.output()}'
-            time.sleep(0.02)
-
-    def type_keys(self, keys: str) -> None:
-        """Type keys on the node's terminal."""
-        os.write(self.master, keys.encode())
+        super().__init__([sys.executable, '-m', MODULE, *ros_args],
+                         isolated_environment(os.environ, domain_id))
 
     def hold(self, key: str, recorder: CmdVelRecorder, twist: tuple,
              timeout: float = 15.0) -> float:
@@ -139,18 +112,6 @@ class TeleopProcess:
             if any(twist_of(msg) == pytest.approx(twist) for _, msg in recorder.since(start)):
                 return typed
         raise AssertionError(f'holding {key!r} did not give {twist}:\n{self.output()}')
-
-    def terminal_restored(self) -> bool:
-        """Whether the terminal settings are those from before the node started."""
-        return termios.tcgetattr(self.slave) == self.terminal_settings
-
-    def close(self) -> None:
-        """Kill the node if it still runs; close the terminal."""
-        if self.process.poll() is None:
-            self.process.kill()
-            self.process.wait(timeout=5)
-        os.close(self.master)
-        os.close(self.slave)
 
 
 @pytest.mark.integration
