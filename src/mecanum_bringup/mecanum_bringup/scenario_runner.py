@@ -3,7 +3,7 @@ run_scenarios: run scenario files with the whole simulated robot and judge them.
 
 Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``)::
 
-    ./mecanum run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
+    ros2 run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
         [--junit FILE] [--real-time-factor X|max] [--no-lockstep] [--record] [--foxglove]
         [--no-compose] [--jobs N] [--quiet]
 

@@ -3,9 +3,9 @@ run_sweep: run every variant of a sweep file and report failure rates.
 
 Usage::
 
-    ./mecanum run mecanum_bringup run_sweep src/mecanum_bringup/sweeps/tour_variants.yaml \\
+    ros2 run mecanum_bringup run_sweep src/mecanum_bringup/sweeps/tour_variants.yaml \\
         --jobs 2 [--out reports/sweeps/NAME] [--ray ADDRESS] [--real-time-factor max]
-    ./mecanum run mecanum_bringup compare_sweeps reports/sweeps/A reports/sweeps/B
+    ros2 run mecanum_bringup compare_sweeps reports/sweeps/A reports/sweeps/B
 
 Each variant (:mod:`mecanum_bringup.sweep`) is a scenario run exactly as run_scenarios
 runs one: the whole simulated robot, isolated (its own ROS domain, processes and run
