@@ -323,3 +323,56 @@ def test_velocity_smoother(start_node):
     assert_read_only(running, 'feedback', (
         'a topic, frame or mode the node wired up when it started (subscriptions, '
         'publishers, transform lookups); restart the node to change it'), 'CLOSED_LOOP')
+
+
+def test_navigator_controller_limits(start_node):
+    from mecanum_navigation.navigator.navigator_node import NavigatorNode
+    running = start_node(NavigatorNode, file_parameters(
+        'mecanum_navigation', 'nav2_params.yaml', 'navigator'))
+    node = running.node
+    before = node.navigator.controller
+    assert running.set_one('controller.max_vel_x', 0.3).successful
+    params = node.navigator.controller.params
+    assert node.navigator.controller is not before
+    assert (params.max_vel_x, params.min_vel_x) == (0.3, -0.3)
+    assert params.max_vel_y == before.params.max_vel_y
+    assert running.set_one('controller.xy_goal_tolerance', 0.1).successful
+    assert node.navigator.controller.params.xy_goal_tolerance == 0.1
+    assert node.navigator.controller.params.max_vel_x == 0.3
+    refused = running.set_one('controller.max_vel_y', 5.0)
+    assert not refused.successful
+    assert refused.reason.startswith('controller.max_vel_y (5) exceeds the robot limit '
+                                     'max_velocity_y_m_s'), refused.reason
+    assert_refused(running.set_one('controller.max_vel_theta', -1.0),
+                   'controller.max_vel_theta must be finite and > 0, got -1.0')
+    assert_read_only(running, 'planner.tolerance',
+                     'read once when the node starts; restart the node to change it', 0.5)
+
+
+#: The reason a node with nothing to change at run time gives (runtime_parameters).
+RESTART_REASON = 'read once when the node starts; restart the node to change it'
+
+
+@pytest.mark.parametrize('package, module, class_name, config, section, name, value, reason', [
+    ('robot_simulation', 'simulation_node', 'RobotSimulation', None, None,
+     'cmd_timeout_s', 2.0, RESTART_REASON),
+    ('mecanum_safety', 'twist_mux_node', 'TwistMuxNode', 'twist_mux.yaml', 'twist_mux',
+     'topics.navigation.timeout', 5.0, "the mux's inputs, subscribed when it started (as "
+     "twist_mux's); restart twist_mux to change them"),
+    ('mecanum_localization', 'ekf_node', 'EkfNode', 'ekf.yaml', 'ekf_filter_node',
+     'frequency', 10.0, RESTART_REASON),
+    ('mecanum_control', 'encoder_reader', 'EncoderReader', None, None,
+     'wheel_radius_m', 0.1, robot_config_read_only_reason('wheel_radius_m')),
+])
+def test_a_node_without_run_time_parameters_refuses_every_set(
+        start_node, package, module, class_name, config, section, name, value, reason):
+    # Before, such a set was accepted and changed nothing.
+    import importlib
+    node_class = getattr(importlib.import_module(f'{package}.{module}'), class_name)
+    overrides = file_parameters(package, config, section) if config else ()
+    running = start_node(node_class, overrides)
+    if name == 'wheel_radius_m':   # declared read-only with motor_params.yaml's reason
+        assert_refused(running.set_one(name, value), f'{name} is read-only: {reason}')
+        assert running.describe(name).read_only
+    else:
+        assert_read_only(running, name, reason, value)

@@ -41,6 +41,7 @@ from mecanum_bringup.message_definitions import split_type_name
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
+from mecanum_control.runtime_parameters import read_only_parameters
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -156,6 +157,7 @@ class BagRecorder(Node):
             f'Recording to {self.writer.mcap_path}: '
             f'{", ".join(sorted(self.topics)) if self.topics else "all topics"}'
             f'{" on simulated time" if self.use_sim_time else ""}')
+        read_only_parameters(self)
 
     def absolute_name(self, topic) -> str:
         """Return a topics entry as an absolute name (relative to the node's namespace)."""

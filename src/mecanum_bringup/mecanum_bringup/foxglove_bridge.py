@@ -41,6 +41,7 @@ from mecanum_bringup.message_definitions import message_definition
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
+from mecanum_control.runtime_parameters import read_only_parameters
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
@@ -123,6 +124,7 @@ class FoxgloveBridge(Node):
         self.get_logger().info(
             f'Foxglove WebSocket server listening on ws://{address}:{self.server.port}'
             f'{" (simulated time)" if self.use_sim_time else ""}')
+        read_only_parameters(self)
 
     def wanted(self, topic: str) -> bool:
         """Tell whether a topic is to be shown."""

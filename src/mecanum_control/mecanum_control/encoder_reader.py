@@ -20,6 +20,7 @@ import sys
 from mecanum_control.messages import odometry_transform, planar_odometry
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import covariance_from_diagonal, declare_robot_config
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_control.wheel_odometry import EncoderSample, WheelOdometry
 from mecanum_interfaces.msg import WheelTicks
 from nav_msgs.msg import Odometry
@@ -53,6 +54,7 @@ class EncoderReader(Node):
         self.get_logger().info(
             f'Encoder reader started: {config.counts_per_wheel_rev:.0f} counts per wheel '
             f'revolution, joints {", ".join(self.joint_names)}')
+        read_only_parameters(self)
 
     def on_ticks(self, msg: WheelTicks) -> None:
         """Integrate one counter sample and publish the results."""

@@ -59,6 +59,7 @@ from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.publisher_check_node import (
     declare_publisher_check, poll_publisher_check, start_publisher_checks)
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_control.wheel_odometry import wrapped_delta
 from mecanum_interfaces.msg import WheelTicks
 from rclpy.clock import Clock, ClockType
@@ -193,6 +194,7 @@ class HardwareInterface(Node):
         self.get_logger().info(f'Hardware interface started, board at {self.port} '
                                f'(protocol v{proto.PROTOCOL_VERSION})')
         self.connect()
+        read_only_parameters(self)
 
     def report_clock_wait(self) -> None:
         """Warn while simulated time has not started (no /clock message yet)."""

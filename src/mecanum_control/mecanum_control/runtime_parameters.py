@@ -405,3 +405,15 @@ def _kind_of(default) -> Optional[type]:
 
 def _runtime_description(description: str) -> str:
     return f'{RUNTIME_DESCRIPTION}: {description}' if description else RUNTIME_DESCRIPTION
+
+
+def read_only_parameters(node, reasons=()) -> RuntimeParameters:
+    """
+    Make every parameter node has declared read-only, each set refused with its reason.
+
+    For nodes that take no parameter at run time: without it a ``ros2 param set`` would
+    be accepted and change nothing. Call it at the end of the constructor.
+    """
+    runtime = RuntimeParameters(node, reasons)
+    runtime.start()
+    return runtime

@@ -35,6 +35,7 @@ import tty
 
 from geometry_msgs.msg import Twist, TwistStamped
 from mecanum_control.parameters import positive
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_control.teleop_keys import (
     apply_key, HELP_TEXT, QUIT_KEY, SPEED_BINDINGS, speeds_text, TeleopState, twist_from_state)
 import rclpy
@@ -89,6 +90,7 @@ class TeleopKeyboard(Node):
             f'Keyboard teleop started: publishing {"TwistStamped" if self.stamped else "Twist"}'
             f' on {self.cmd_pub.topic_name}, max {max_speed} m/s and {max_turn} rad/s, '
             f'repeat {repeat_rate_hz} Hz, key timeout {self.key_timeout_s} s')
+        read_only_parameters(self)
 
     def handle_key(self, key: str) -> bool:
         """Apply one key and publish the twist; return False for the quit key (Ctrl-C)."""

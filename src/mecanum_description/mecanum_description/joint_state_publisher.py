@@ -15,6 +15,7 @@ from typing import List
 
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_description.robot_model import parse_urdf, UrdfError
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -35,6 +36,7 @@ class JointStatePublisher(Node):
         self.description_sub = self.create_subscription(
             String, '/robot_description', self.on_description, latched)
         self.timer = self.create_timer(1.0 / rate_hz, self.publish)
+        read_only_parameters(self)
 
     def on_description(self, msg: String) -> None:
         """Take the moving joints of a new robot description."""

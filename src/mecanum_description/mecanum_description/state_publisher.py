@@ -23,6 +23,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_description.joint_states import joint_state_transforms, PublishThrottle
 from mecanum_description.robot_model import parse_urdf, Transform, UrdfError
 from rcl_interfaces.msg import ParameterDescriptor
@@ -88,6 +89,7 @@ class StatePublisher(Node):
             f'Robot state publisher started: robot {self.model.name!r}, '
             f'{len(self.model.links)} links, {len(self.model.static_joints())} fixed '
             f'transforms on /tf_static, moving joints: {", ".join(moving) or "none"}')
+        read_only_parameters(self)
 
     def on_joint_states(self, msg: JointState) -> None:
         """Publish the transforms of the moving joints in one joint state."""

@@ -11,6 +11,7 @@ clock, and stays up so late subscribers get it. Arguments: see
 import sys
 
 from mecanum_control.node_main import run_node
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_description.state_publisher import transform_message
 from mecanum_description.static_transform import parse_static_transform
 from rclpy.node import Node
@@ -36,6 +37,7 @@ class StaticTransformPublisher(Node):
             f'{transform.child}: translation ({t[0]}, {t[1]}, {t[2]}), rotation '
             f'(x {transform.rotation[0]:.6f}, y {transform.rotation[1]:.6f}, '
             f'z {transform.rotation[2]:.6f}, w {transform.rotation[3]:.6f})')
+        read_only_parameters(self)
 
 
 def main(args=None) -> int:

@@ -38,6 +38,7 @@ from mecanum_control.angles import yaw_from_quaternion
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.messages import odometry_transform, planar_odometry
 from mecanum_control.node_main import run_node
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_interfaces.srv import SetPose
 from mecanum_localization.ekf import (
     AX, AY, Measurement, PlanarEkf, VX, VY, VYAW, X, Y, YAW)
@@ -137,6 +138,7 @@ class EkfNode(Node):
                    if config.publish_tf else '')
         self.get_logger().info(f'EKF started at {config.frequency_hz:g} Hz: fusing {inputs}; '
                                f'publishing odometry/filtered{outputs}')
+        read_only_parameters(self)
 
     # -- time ---------------------------------------------------------------------------
 

@@ -20,6 +20,7 @@ import sys
 
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_number, positive
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_map_server.map_io import MapError, MODES, SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH
 from mecanum_map_server.map_saver import take_latched_map, write_map
 from nav2_msgs.srv import SaveMap
@@ -43,6 +44,7 @@ class MapSaverServer(Node):
         self.service = self.create_service(SaveMap, '~/save_map', self.on_save_map)
         self.get_logger().info(
             f'Map saver ready on {self.resolve_service_name(self.service.srv_name)}')
+        read_only_parameters(self)
 
     def on_save_map(self, request, response):
         """Save one map of request.map_topic to request.map_url (nav2_msgs/SaveMap)."""

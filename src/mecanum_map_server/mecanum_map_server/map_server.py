@@ -20,6 +20,7 @@ problem (exit code 2).
 import sys
 
 from mecanum_control.node_main import run_node
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_map_server.grid_messages import occupancy_grid
 from mecanum_map_server.map_io import find_map_file, load_map, MapError, MapImageError
 from nav2_msgs.srv import LoadMap
@@ -51,6 +52,7 @@ class MapServer(Node):
         self.map_srv = self.create_service(GetMap, '~/map', self.on_get_map)
         self.load_srv = self.create_service(LoadMap, '~/load_map', self.on_load_map)
         self._serve(path, occupancy, f' on {self.map_pub.topic_name} in frame {frame_id}')
+        read_only_parameters(self)
 
     def _serve(self, path, occupancy, how: str) -> None:
         """Make occupancy the served map: publish it (latched) and log it, how appended."""

@@ -59,6 +59,7 @@ from mecanum_control.node_main import run_node
 from mecanum_control.robot_config import (
     default_config_path, PARAMETER_KINDS, parameters_from_yaml, robot_config_from_parameters,
     RobotConfig)
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_safety.twist_mux import Entry, parse_entries, Step, TwistMux
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
@@ -152,6 +153,13 @@ class TwistMuxNode(Node):
             f'{config.max_angular_velocity_rad_s:g} rad/s, wheels '
             f'{config.max_wheel_speed_rad_s:g} rad/s')
         self._apply(self.core.update(self._now_s()), None)
+        read_only_parameters(self, {
+            'topics.*': "the mux's inputs, subscribed when it started (as twist_mux's); "
+                        'restart twist_mux to change them',
+            'locks.*': "the mux's locks, subscribed when it started (as twist_mux's); "
+                       'restart twist_mux to change them',
+            'absurd_factor': 'a safety limit of the chain, read when it started; restart '
+                             'twist_mux to change it'})
 
     # -- helpers ------------------------------------------------------------------------
 

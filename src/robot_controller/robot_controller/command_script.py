@@ -14,6 +14,7 @@ launch files can end a system with ``on_exit: shutdown``.
 import sys
 from typing import List, Optional
 
+from mecanum_control.runtime_parameters import read_only_parameters
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -48,6 +49,7 @@ class CommandScript(Node):
         self.timer = self.create_timer(0.1, self.on_timer)
         self.get_logger().info(
             f'Command script with {len(self.commands)} commands; waiting for robot_controller')
+        read_only_parameters(self)
 
     def on_robot_status(self, msg: String) -> None:
         """Report where the robot is once the last command has finished."""

@@ -16,6 +16,7 @@ import sys
 from geometry_msgs.msg import Twist
 from mecanum_control.messages import odometry_transform, planar_odometry
 from mecanum_control.node_main import run_node
+from mecanum_control.runtime_parameters import read_only_parameters
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from robot_simulation.kinematic_model import KinematicBase, Pose2D
@@ -52,6 +53,7 @@ class RobotSimulation(Node):
         self.step_timer = self.create_timer(1.0 / update_rate_hz, self.on_step)
         self.status_timer = self.create_timer(1.0 / status_rate_hz, self.on_status)
         self.get_logger().info('Robot simulation (kinematic) started')
+        read_only_parameters(self)
 
     def on_cmd_vel(self, msg: Twist) -> None:
         """Take a new body twist; reject NaN/inf with a warning."""

@@ -86,6 +86,7 @@ from mecanum_control.board_sim import PtyPort, SerialLine
 from mecanum_control.messages import planar_odometry
 from mecanum_control.node_main import make_executor, run_node, signals_deferred
 from mecanum_control.parameters import declare_number, declare_robot_config, positive
+from mecanum_control.runtime_parameters import read_only_parameters
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.node import Node
@@ -232,6 +233,7 @@ class SimulatorNode(Node):
             f'Simulating world {self.world.name!r} ({world_path}), robot at ({x:.2f}, '
             f'{y:.2f}, {math.degrees(yaw):.0f} deg), physics {config.physics_rate_hz:.0f} Hz, '
             f'real-time factor {self.real_time_factor or "max"}{mode}, {where}')
+        read_only_parameters(self)
 
     def on_clock_ack(self, msg: Header) -> None:
         """Take a process's answer to a /clock (lockstep)."""

@@ -63,6 +63,7 @@ from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_typed
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import PlanarTransform, TransformBuffer, TransformError
 from mecanum_map_server.grid_messages import occupancy_map
@@ -190,6 +191,7 @@ class AmclNode(Node):
             f'{cfg.update_min_d:g} m / {cfg.update_min_a:g} rad; scans on '
             f'{self.scan_sub.topic_name}, map on {self.map_sub.topic_name}, '
             f'{self.global_frame} -> {self.odom_frame} -> {self.base_frame}')
+        read_only_parameters(self)
 
     # --- parameters ------------------------------------------------------------------
 

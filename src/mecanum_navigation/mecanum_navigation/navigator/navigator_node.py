@@ -36,6 +36,10 @@ cost translation, latched, at ``global_costmap.publish_frequency``) and ``local_
 Parameters: see config/nav2_params.yaml (Nav2's names, grouped controller.*, planner.*,
 progress_checker.*, global_costmap.*, local_costmap.*), plus the robot parameters of
 motor_params.yaml. A bad value stops the node with one FATAL line naming the key.
+Set at run time (``ros2 param set /navigator controller.max_vel_x 0.3``, checked as at
+start-up, see :mod:`mecanum_control.runtime_parameters`): the controller's speed limits
+and goal tolerances (RUNTIME_CONTROLLER_KEYS); the controller restarts with them at the
+next cycle (it finds its place on the path again). Every other parameter is read-only.
 
 The authorised zone: ``zone_file`` (a standalone zone file, mecanum_safety.zone's
 format, e.g. mecanum_safety's zones/apartment.yaml; '' = no zone), read once at start
@@ -58,6 +62,7 @@ keeps the executor busy-polling (rclpy 7 re-runs a pending coroutine task every 
 """
 
 from collections import deque
+import dataclasses
 import math
 import sys
 import time
@@ -67,6 +72,7 @@ from geometry_msgs.msg import PoseStamped, Twist
 from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, declare_typed
+from mecanum_control.runtime_parameters import RuntimeParameters
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import PlanarTransform, TransformBuffer, TransformError
 from mecanum_map_server.grid_messages import occupancy_grid, occupancy_map
@@ -108,6 +114,9 @@ ROBOT_LIMITS = {
     'max_vel_x': 'max_velocity_x_m_s', 'max_vel_y': 'max_velocity_y_m_s',
     'max_vel_theta': 'max_angular_velocity_rad_s', 'acc_lim_x': 'max_acceleration_x_m_s2',
     'acc_lim_y': 'max_acceleration_y_m_s2', 'acc_lim_theta': 'max_angular_acceleration_rad_s2'}
+#: controller.* keys settable at run time (ros2 param set).
+RUNTIME_CONTROLLER_KEYS = ('max_vel_x', 'max_vel_y', 'max_vel_theta', 'xy_goal_tolerance',
+                           'yaw_goal_tolerance')
 WARNING_PERIOD_S = 5.0
 #: Scans kept waiting for their pose (10 Hz: 0.5 s worth).
 MAX_PENDING_SCANS = 5
@@ -118,6 +127,7 @@ class NavigatorNode(Node):
 
     def __init__(self, **node_options):
         super().__init__('navigator', **node_options)
+        self.runtime = RuntimeParameters(self)
         config = declare_robot_config(self)
         self.global_frame = self._declare('global_frame', 'map')
         self.odom_frame = self._declare('odom_frame', 'odom')
@@ -254,6 +264,7 @@ class NavigatorNode(Node):
                          f'{len(zone.exclude)} exclusion(s)): plans and trajectories stay in '
                          'it')
         self.get_logger().info(f'authorised zone: {zone_text}')
+        self.runtime.start()
 
     # --- parameters ------------------------------------------------------------------
 
@@ -264,17 +275,39 @@ class NavigatorNode(Node):
     def _controller_params(self, config, frequency: float) -> ControllerParams:
         """Read controller.* (defaults: the robot's limits) and check them against them."""
         base = ControllerParams.from_robot_config(config)
-        values = {key: self._declare(f'controller.{key}', getattr(base, key))
-                  for key in CONTROLLER_KEYS}
-        for key, limit_name in ROBOT_LIMITS.items():
-            limit = getattr(config, limit_name)
-            if values[key] > limit + 1e-9:
-                raise ValueError(f'parameter controller.{key} ({values[key]:g}) exceeds the '
-                                 f'robot limit {limit_name} ({limit:g}, motor_params.yaml)')
+
+        def check(name: str, value: float) -> float:
+            key = name[len('controller.'):]
+            _positive(name, value)
+            limit_name = ROBOT_LIMITS.get(key)
+            if limit_name is not None and value > getattr(config, limit_name) + 1e-9:
+                raise ValueError(f'parameter {name} ({value:g}) exceeds the robot limit '
+                                 f'{limit_name} ({getattr(config, limit_name):g}, '
+                                 'motor_params.yaml)')
+            return value
+        values = {}
+        for key in CONTROLLER_KEYS:
+            if key in RUNTIME_CONTROLLER_KEYS:
+                values[key] = self.runtime.declare(f'controller.{key}', getattr(base, key),
+                                                   check=check, kind=float)
+            else:
+                value = self._declare(f'controller.{key}', getattr(base, key))
+                values[key] = check(f'controller.{key}', value) if key in ROBOT_LIMITS else value
+        self.runtime.joint([f'controller.{key}' for key in RUNTIME_CONTROLLER_KEYS],
+                           apply=self._set_controller_limits)
         values.update(controller_frequency=frequency,
                       transform_tolerance=self.transform_tolerance)
         return _build('controller', ControllerParams.from_robot_config,
                       {'config': config, **values})
+
+    def _set_controller_limits(self, values: Dict[str, float]) -> None:
+        """Restart the controller with new run-time controller.* values (the next cycle)."""
+        changes = {name[len('controller.'):]: value for name, value in values.items()}
+        for key in ('x', 'y'):   # min_vel_* follow max_vel_* (a mecanum base backs up)
+            if f'max_vel_{key}' in changes:
+                changes[f'min_vel_{key}'] = -changes[f'max_vel_{key}']
+        params = dataclasses.replace(self.navigator.controller.params, **changes)
+        self.navigator.controller = LocalController(params)
 
     def _keepout_layer(self, zones: list) -> KeepoutLayer:
         """Parse keepout_zones (Nav2 footprint strings '[[x, y], ...]') into a layer."""

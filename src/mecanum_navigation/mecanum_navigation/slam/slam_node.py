@@ -32,6 +32,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from mecanum_control.angles import quaternion_from_yaw
 from mecanum_control.log_throttle import KeyedThrottle
 from mecanum_control.node_main import run_node
+from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_localization.tf_listener import stamp_to_s, TransformListener
 from mecanum_localization.transforms import PlanarTransform, TransformBuffer, TransformError
 from mecanum_map_server.grid_messages import occupancy_grid
@@ -91,6 +92,7 @@ class SlamNode(Node):
             f'SLAM started: scans on {self.scan_sub.topic_name}, {self.map_frame} -> '
             f'{self.odom_frame} -> {self.base_frame}, {values["resolution"]:g} m cells, '
             f'loop closing {"on" if values["do_loop_closing"] else "off"}')
+        read_only_parameters(self)
 
     def _declare(self, name: str, default):
         """Declare a parameter; return its value checked against the default's type."""
