@@ -167,6 +167,8 @@ def test_the_same_verdicts_one_at_a_time_resumed_two_at_a_time_and_on_ray(
         env=env, capture_output=True, text=True, timeout=60)
     assert compared.returncode == 0, compared.stdout + compared.stderr
     assert 'verdict' in compared.stdout
+    # Steps named by what they do (the goal subsets make step 1 differ by variant).
+    assert 'step 1 (differs by variant)' in compared.stdout, compared.stdout
 
     # Ray: a 2-node cluster on this machine (Ray's own test cluster, 1 CPU a node); the
     # second node dies while it runs a variant, Ray runs that variant again elsewhere.

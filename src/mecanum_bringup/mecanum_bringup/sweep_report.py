@@ -261,23 +261,28 @@ def rates_table(rows: Sequence[VariantRow], runs_base: Optional[PathLike] = None
     return '\n'.join(lines) + '\n'
 
 
-def compare_table(changes: Sequence[Change]) -> str:
+def compare_table(changes: Sequence[Change],
+                  labels: Optional[Dict[str, StepLabel]] = None) -> str:
     """
     Return a fixed-width table of compare's changes and a summary line.
 
     One line per rate: criterion, A's and B's failures/n with rate and interval, and
-    the change ('worse' or 'better' only when the intervals do not overlap).
+    the change ('worse' or 'better' only when the intervals do not overlap). labels
+    (step_labels) name the steps by what they do, e.g. 'step 2: goal (4.00, 2.30)'; the
+    lines after the table say how the steps that differ between variants differ.
     """
+    labels = labels or {}
     table = [('criterion', 'A failures/n', 'A rate (95 % CI)', 'B failures/n',
               'B rate (95 % CI)', 'change')]
     for change in changes:
-        cells: List[str] = [change.name]
+        cells: List[str] = [_criterion_label(change.name, labels)]
         for rate in (change.a, change.b):
             cells += [f'{rate.failures}/{rate.n}',
                       f'{_percent(rate.rate)} ({_interval(rate)})' if rate.n else '-']
         cells.append(change.verdict)
         table.append(tuple(cells))
     lines = _fixed_width(table, right=(1, 2, 3, 4))
+    lines += _step_legend(labels)
     worse = [c.name for c in changes if c.verdict == 'worse']
     better = [c.name for c in changes if c.verdict == 'better']
     lines.append(f'{len(worse)} worse{": " + ", ".join(worse) if worse else ""}; '

@@ -537,7 +537,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 def compare_main(argv: Optional[Sequence[str]] = None) -> int:
     """Compare two sweeps' failure rates (before and after a change); return the exit code."""
-    from mecanum_bringup.sweep_report import compare_table, variant_changes_table
+    from mecanum_bringup.sweep_report import compare_table, step_labels, variant_changes_table
     from mecanum_bringup.sweep_stats import compare, variant_changes
     from mecanum_bringup.sweep_store import read_rows
     parser = argparse.ArgumentParser(
@@ -553,7 +553,12 @@ def compare_main(argv: Optional[Sequence[str]] = None) -> int:
         print(f'compare_sweeps: {error}', file=sys.stderr)
         return 2
     changes = compare(*rows)
-    print(compare_table(changes))
+    # Steps named by what they do, from each sweep's run folders (B's where both have one).
+    labels = {}
+    for path, sweep_rows in zip((args.before, args.after), rows):
+        folder = _store_path(Path(path)).parent
+        labels.update(step_labels(sweep_rows, None, folder))
+    print(compare_table(changes, labels))
     print(variant_changes_table(*variant_changes(*rows)))
     return 1 if any(change.verdict == 'worse' for change in changes) else 0
 

@@ -71,6 +71,17 @@ def test_compare_table_names_the_change(rows):
     assert same[-1] == '0 worse; 0 better (beyond the 95 % intervals)'
 
 
+def test_compare_table_names_steps_by_what_they_do():
+    before = [row(i, 'OK', {'step 1': True, 'step 2': True}) for i in range(4)]
+    labels = {'step 1': StepLabel('step 1: goal (4.00, 2.30)'),
+              'step 2': StepLabel('step 2 (differs by scenario)', 'scenario',
+                                  ('a: goal (1.00, 1.00)', 'b: wait 2.0 s'))}
+    lines = compare_table(compare(before, before), labels).splitlines()
+    assert [line.split('  ')[0] for line in lines[2:5]] == [
+        'verdict', 'step 1: goal (4.00, 2.30)', 'step 2 (differs by scenario)']
+    assert lines[5] == 'step 2 by scenario: a: goal (1.00, 1.00); b: wait 2.0 s'
+
+
 def test_variant_changes_table_lists_each_other_status_and_counts_the_same(rows):
     after = [row(0, 'UNEXPECTED', values=rows[0].values, first_failure='step 1:\n STUCK'),
              row(1, 'OK', values=rows[1].values), rows[2], rows[3]]
