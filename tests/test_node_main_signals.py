@@ -107,3 +107,46 @@ def test_a_close_that_hangs_is_left_after_the_close_timeout(ros_env, tmp_path):
     assert process.returncode == 0
     assert 'closed after' not in stdout                  # left during the hang
     assert f'closing took more than {CLOSE_TIMEOUT_S:g} s' in stderr
+
+
+#: A node spun by spin_waking with an executor whose teardown gets a second Ctrl-C, as
+#: launch's SIGINT after the terminal's: it must come while signals are still deferred.
+TEARDOWN_NODE = textwrap.dedent('''
+    import os
+    import signal
+    import sys
+    import threading
+
+    from mecanum_control.node_main import run_node, spin_waking
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+
+    class SecondCtrlCInTeardown(SingleThreadedExecutor):
+        def shutdown(self, timeout_sec=None):
+            print('teardown', flush=True)
+            os.kill(os.getpid(), signal.SIGINT)   # handled here if not deferred
+            result = super().shutdown(timeout_sec)
+            print('torn down', flush=True)
+            return result
+
+
+    def spin(node):
+        threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+        spin_waking(node, executor=SecondCtrlCInTeardown(context=node.context))
+
+
+    sys.exit(run_node(lambda: Node('teardown_node'), 'teardown_node', spin=spin))
+''')
+
+
+def test_the_executor_is_torn_down_while_signals_are_deferred(ros_env, tmp_path):
+    # The EventsExecutor left to garbage collection got launch's second SIGINT inside
+    # its C++ destructor under the real launch: abort, exit -6 ("process has died").
+    script = tmp_path / 'teardown_node.py'
+    script.write_text(TEARDOWN_NODE)
+    result = subprocess.run([sys.executable, str(script)], env=ros_env, text=True,
+                            capture_output=True, timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.split() == ['teardown', 'torn', 'down'], result.stdout
+    assert 'Traceback' not in result.stderr, result.stderr

@@ -409,10 +409,30 @@ def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
     answer = answer_clock((node, *more_nodes), node.get_name() if not more_nodes
                           else f'{node.get_name()} (+{len(more_nodes)} nodes)')
     with signals_deferred() as stop:
-        while node.context.ok() and not stop.is_set():
-            executor.spin_once(timeout_sec=WAKE_PERIOD_S)
-            if answer is not None:
-                answer.after_spin(executor)
+        try:
+            while node.context.ok() and not stop.is_set():
+                executor.spin_once(timeout_sec=WAKE_PERIOD_S)
+                if answer is not None:
+                    answer.after_spin(executor)
+        finally:
+            release_executor(executor)
+            executor = None
+
+
+def release_executor(executor) -> None:
+    """
+    Shut the executor down now, while signals are still deferred (signals_deferred).
+
+    Left to garbage collection after spin, the C++ EventsExecutor is torn down once the
+    raising signal handlers are back; a second Ctrl-C (launch's SIGINT after the
+    terminal's) arriving then raised KeyboardInterrupt inside its destructor, which
+    aborts the process ("terminate called after throwing pybind11::error_already_set",
+    exit -6, launch: "process has died").
+    """
+    try:
+        executor.shutdown(timeout_sec=1.0)
+    except Exception:  # noqa: B902 - the context may be shut down already
+        pass
 
 
 def run_node(node_factory: Callable[[], Node], name: str,

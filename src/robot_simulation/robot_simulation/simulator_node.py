@@ -84,7 +84,8 @@ from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from mecanum_control.angles import quaternion_from_yaw
 from mecanum_control.board_sim import PtyPort, SerialLine
 from mecanum_control.messages import planar_odometry
-from mecanum_control.node_main import make_executor, run_node, signals_deferred
+from mecanum_control.node_main import (
+    make_executor, release_executor, run_node, signals_deferred)
 from mecanum_control.parameters import declare_number, declare_robot_config, positive
 from mecanum_control.runtime_parameters import read_only_parameters
 from nav_msgs.msg import Odometry
@@ -348,37 +349,41 @@ class SimulatorNode(Node):
         factor = self._pace_factor()
         # Ctrl-C or SIGTERM: the step in progress ends, then KeyboardInterrupt.
         with signals_deferred() as stop:
-            while rclpy.ok() and not stop.is_set():
-                self.advance()
-                if self.lockstep is not None and self._clock_published:
-                    self._clock_published = False
-                    self._take_board_commands()   # those before this /clock answer none
-                    self.lockstep.published(self.sim.time_s, time.monotonic())
-                    if self._board_unreliable():
-                        # A serial fault may lose or delay the command: the wire answers.
-                        self.lockstep.board_command(time.monotonic())
-                    self.wait_for_stack(executor, stop)
-                    next_spin = time.monotonic() + SPIN_PERIOD_S
-                now = time.monotonic()
-                if now >= next_spin:  # parameter services; spinning every step costs 3x
-                    executor.spin_once(timeout_sec=0.0)
-                    next_spin = now + SPIN_PERIOD_S
-                if self._pace_factor() != factor:   # lockstep engaged or a part gone
-                    factor = self._pace_factor()
-                    start, start_sim_s = now, self.sim.time_s
-                if factor > 0.0:
-                    wait = start + (self.sim.time_s - start_sim_s) / factor - now
-                    if wait > 0.0:
-                        time.sleep(wait)
-                    elif wait < -0.25:
-                        # Stalled (load, debugger, lockstep): do not race to catch up,
-                        # which would flood the control stack with /clock; carry on.
+            try:
+                while rclpy.ok() and not stop.is_set():
+                    self.advance()
+                    if self.lockstep is not None and self._clock_published:
+                        self._clock_published = False
+                        self._take_board_commands()   # those before this /clock answer none
+                        self.lockstep.published(self.sim.time_s, time.monotonic())
+                        if self._board_unreliable():
+                            # A serial fault may lose or delay the command: the wire answers.
+                            self.lockstep.board_command(time.monotonic())
+                        self.wait_for_stack(executor, stop)
+                        next_spin = time.monotonic() + SPIN_PERIOD_S
+                    now = time.monotonic()
+                    if now >= next_spin:  # parameter services; spinning every step costs 3x
+                        executor.spin_once(timeout_sec=0.0)
+                        next_spin = now + SPIN_PERIOD_S
+                    if self._pace_factor() != factor:   # lockstep engaged or a part gone
+                        factor = self._pace_factor()
                         start, start_sim_s = now, self.sim.time_s
-                        if self.lockstep is None:
-                            self.get_logger().warning(
-                                f'Simulation fell {-wait:.2f} s behind real_time_factor '
-                                f'{self.real_time_factor}; continuing from now',
-                                throttle_duration_sec=10.0)
+                    if factor > 0.0:
+                        wait = start + (self.sim.time_s - start_sim_s) / factor - now
+                        if wait > 0.0:
+                            time.sleep(wait)
+                        elif wait < -0.25:
+                            # Stalled (load, debugger, lockstep): do not race to catch up,
+                            # which would flood the control stack with /clock; carry on.
+                            start, start_sim_s = now, self.sim.time_s
+                            if self.lockstep is None:
+                                self.get_logger().warning(
+                                    f'Simulation fell {-wait:.2f} s behind real_time_factor '
+                                    f'{self.real_time_factor}; continuing from now',
+                                    throttle_duration_sec=10.0)
+            finally:
+                release_executor(executor)   # while signals are deferred
+                executor = None
 
     def _pace_factor(self) -> float:
         """Return the real-time factor to pace at (0: none); at most 1 while unlocked."""
