@@ -47,7 +47,7 @@ def test_composed_nodes_talk_and_close_on_ctrl_c(start_system, test_node, compos
         time.sleep(0.05)
     command_pub.publish(String(data='strafe left 0.3 m at 0.3 m/s'))
     status.wait_for(lambda m: m.data == 'done: strafe left')
-    time.sleep(0.3)
+    tf.wait_since(time.monotonic(), lambda m: True)   # a transform after the motion
     # robot_controller's cmd_vel reached the simulation in the same process.
     assert tf.latest().transforms[0].transform.translation.y == pytest.approx(0.3, abs=0.03)
 
@@ -66,6 +66,35 @@ def test_composed_nodes_talk_and_close_on_ctrl_c(start_system, test_node, compos
     assert not os.path.exists(f'/proc/{pid}') or \
         open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()[0] == 'Z'
     assert processes_with_marker(system.marker) == []
+
+
+def test_a_stalled_process_holds_the_test_clock_back(start_system, test_node, composition):
+    # A loaded machine can stall a process for a second or more; the test clock (as the
+    # simulator's lockstep) must wait for it, or simulated time runs on without it and
+    # the motion it times comes out longer (0.396 m for 0.3 m, seen in CI).
+    test_node.start_clock()
+    tf = test_node.record(TFMessage, '/tf')
+    status = test_node.record(String, 'control_status')
+    command_pub = test_node.node.create_publisher(String, 'control_command', 10)
+    system = start_system('--compose', '--composition', str(composition),
+                          'mecanum_bringup', 'minimal.launch.yaml', 'use_sim_time:=true')
+    pid = system.node_pid('minimal_container')
+    deadline = time.monotonic() + 20
+    while command_pub.get_subscription_count() == 0:
+        assert time.monotonic() < deadline, 'robot_controller does not subscribe'
+        time.sleep(0.05)
+    command_pub.publish(String(data='strafe left 0.3 m at 0.3 m/s'))
+    status.wait_for(lambda m: m.data.startswith('accepted: strafe left'))
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        time.sleep(1.6)   # the stall itself: longer than 1 s, shorter than 3 s
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    status.wait_for(lambda m: m.data == 'done: strafe left')
+    done_at = time.monotonic()
+    tf.wait_since(done_at, lambda m: True)   # a transform sent after the motion ended
+    y = tf.latest().transforms[0].transform.translation.y
+    assert y == pytest.approx(0.3, abs=0.03)
 
 
 def test_a_node_that_cannot_start_stops_its_container(start_system, tmp_path, composition):
