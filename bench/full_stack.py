@@ -14,7 +14,9 @@ it samples every process (/proc: CPU time, resident memory) and the runner itsel
 Prints, per run: the real-time factor achieved (simulated seconds of the steps / wall
 seconds), the verdict, and the table: CPU (% of one core, mean over the steps), peak
 RSS (MiB). The machine's core count bounds what the sum of CPU can be: a sum near
-100 % x cores means the stack is CPU bound.
+100 % x cores means the stack is CPU bound. ``start CPU s``: the CPU seconds the
+stack's processes (not the runner) used from their start until the system was up
+(every node ready), the price of starting it for one scenario.
 
 Run:  ./mecanum exec python bench/full_stack.py [--scenario FILE] [--clocks wall lockstep]
       [--rtf 1 2] [--lockstep-rtf max 3] [--modes standalone composed] [--json FILE]
@@ -90,6 +92,10 @@ class Sampler:
             for label, pid in self.pids.items():
                 self.peak_rss[label] = max(self.peak_rss.get(label, 0.0), rss_mib(pid))
 
+    def start_cpu_s(self) -> float:
+        """Return the CPU seconds the stack's processes used until the system was up."""
+        return sum(cpu for label, cpu in self.start.items() if label != 'runner')
+
     def rows(self):
         """Return [(label, cpu %, peak rss MiB)], busiest first."""
         wall = max(self.wall[1] - self.wall[0], 1e-9)
@@ -139,6 +145,7 @@ def main() -> int:
                         'sim_s': sim, 'wall_s': wall,
                         'verdict': result.verdict.verdict if result.verdict else None,
                         'first_failure': result.first_failure,
+                        'start_cpu_s': sampler.start_cpu_s(),
                         'processes': [{'process': n, 'cpu_percent': c, 'peak_rss_mib': m}
                                       for n, c, m in rows]})
         failure = f' ({result.first_failure})' if result.first_failure else ''
@@ -154,14 +161,16 @@ def main() -> int:
         print(f'{"total":<24} {sum(r[1] for r in rows):>16.1f} '
               f'{sum(r[2] for r in rows):>13.1f}')
     print(f'\n{"clock":<9} {"mode":<11} {"requested":>9} {"achieved":>8} {"verdict":>8} '
-          f'{"CPU % of a core":>16} {"RSS MiB":>8} {"CPU per sim s":>14}')
+          f'{"CPU % of a core":>16} {"RSS MiB":>8} {"CPU per sim s":>14} '
+          f'{"start CPU s":>12}')
     for run in results:
         cpu = sum(p['cpu_percent'] for p in run['processes'])
         rss = sum(p['peak_rss_mib'] for p in run['processes'])
         per_sim = cpu / 100.0 / run['achieved_rtf'] if run['achieved_rtf'] else float('nan')
         print(f'{run["clock"]:<9} {run["mode"]:<11} {str(run["requested_rtf"]):>9} '
               f'{run["achieved_rtf"]:>8.2f} '
-              f'{str(run["verdict"]):>8} {cpu:>16.1f} {rss:>8.0f} {per_sim:>12.2f} s')
+              f'{str(run["verdict"]):>8} {cpu:>16.1f} {rss:>8.0f} {per_sim:>12.2f} s '
+              f'{run["start_cpu_s"]:>10.2f} s')
     if options.json:
         options.json.write_text(json.dumps(results, indent=1))
     return 0
