@@ -4,6 +4,7 @@ Every test gets its own ROS_DOMAIN_ID (leased, so parallel runs never meet),
 localhost-only discovery, and drives simulated time by publishing /clock itself.
 """
 
+import functools
 import math
 import os
 from pathlib import Path
@@ -306,6 +307,37 @@ class Recorder:
                              f'{[getattr(m, "data", m) for m in self.since(start)[-10:]]}')
 
 
+#: The seed simulation's robot_status text (std_msgs/String).
+SEED_POSITION = re.compile(r'Position: x=(-?\d+\.\d+), y=(-?\d+\.\d+), theta=(-?\d+\.\d+)')
+
+
+def settled_seed_position(status: 'Recorder', since: float, timeout: float = 30.0,
+                          moved_m: float = 0.0) -> tuple:
+    """
+    Return the seed simulation's (x, y, theta) once it has moved and stands still.
+
+    Waits until two robot_status messages received after since (monotonic s) in a row
+    give the same position (the simulation publishes it at 10 Hz), at least moved_m
+    from the origin.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        positions = [tuple(float(v) for v in match.groups()) for match in (
+            SEED_POSITION.fullmatch(m.data) for m in status.since(since)) if match]
+        if (len(positions) >= 2 and positions[-1] == positions[-2]
+                and math.hypot(*positions[-1][:2]) >= moved_m):
+            return positions[-1]
+        assert time.monotonic() < deadline, f'robot_status never settled: {positions[-5:]}'
+        time.sleep(0.05)
+
+
+#: On the wall clock, robot_controller starts a held command once its publisher sees the
+#: simulation's subscription; the simulation may match it a moment later and miss the
+#: first twists (seen on the loaded CI machine), so an open-loop move there may come out
+#: shorter than commanded, never longer.
+SEED_SHORTFALL_M = 0.3
+
+
 class LoopThread:
     """
     A daemon thread that runs the subclass's _run() from start() until stop().
@@ -365,6 +397,17 @@ class TwistRepeater(LoopThread):
 #: alive: dropping it after 1 s of silence on a loaded machine let simulated time run on
 #: without it (a composed container's twist then drove 0.1 m too far).
 CLOCK_ACK_TIMEOUT_S = 3.0
+#: Wall seconds after which an unanswered test /clock is published again (the simulator's
+#: robot_simulation.simulator_node.CLOCK_RESEND_S).
+CLOCK_RESEND_S = 1.0
+
+
+def publish_quietly(publisher, msg) -> None:
+    """Publish msg; nothing if the context has shut down meanwhile."""
+    try:
+        publisher.publish(msg)
+    except Exception:  # noqa: B902 - context shut down
+        pass
 
 
 class ClockAcks:
@@ -390,12 +433,22 @@ class ClockAcks:
         with self._condition:
             self._lockstep.alive(msg.frame_id, time.monotonic())
 
-    def wait_for(self, clock_ns: int, context):
-        """Wait until every live participant has answered clock_ns (or went silent)."""
+    def wait_for(self, clock_ns: int, context, publish_again=None):
+        """
+        Wait until every live participant has answered clock_ns (or went silent).
+
+        Every CLOCK_RESEND_S while someone still owes it, publish_again() sends that
+        /clock again, as the simulator does: a process respawned under the same name
+        says it is alive but missed the /clock (it subscribed after it went out).
+        """
         with self._condition:
             self._lockstep.published(clock_ns * 1e-9, time.monotonic())
+            resend_at = time.monotonic() + CLOCK_RESEND_S
             while context.ok() and self._lockstep.waiting_for(time.monotonic()):
                 self._condition.wait(timeout=0.05)
+                if publish_again is not None and time.monotonic() >= resend_at:
+                    publish_again()
+                    resend_at = time.monotonic() + CLOCK_RESEND_S
             self._lockstep.events()   # parts gone and back: nothing to log here
 
 
@@ -461,7 +514,8 @@ class TestNode:
                 if follow_wall_clock:
                     time.sleep(step_s)
                     continue
-                acks.wait_for(self.clock_ns, self.context)
+                acks.wait_for(self.clock_ns, self.context, functools.partial(
+                    publish_quietly, publisher, msg))
                 time.sleep(max(0.0, step_s / real_time_factor - (time.monotonic() - published)))
         threading.Thread(target=run, daemon=True).start()
 

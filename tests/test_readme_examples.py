@@ -19,14 +19,14 @@ import time
 
 import pytest
 from std_msgs.msg import String
-from tests.conftest import TerminalProcess
+from tests.conftest import (
+    SEED_POSITION as POSITION, SEED_SHORTFALL_M, settled_seed_position, TerminalProcess)
 
 pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
 ROS2 = shutil.which('ros2')
 SHELL_LINE = re.compile(r'^(?P<command>.+?)\s+# shell (?P<shell>\d+)\b')
-POSITION = re.compile(r'Position: x=(-?\d+\.\d+), y=(-?\d+\.\d+), theta=(-?\d+\.\d+)')
 
 
 @pytest.fixture(autouse=True)
@@ -110,27 +110,21 @@ class WalkThrough:
 
 @pytest.fixture
 def walk_through(ros_env, test_node):
-    """A WalkThrough in the test's ROS domain; its commands are stopped at the end."""
+    """Yield a WalkThrough in the test's ROS domain; stop its commands at the end."""
     shells = WalkThrough(ros_env, test_node)
     yield shells
     for process in shells.background:
         process.close()
 
 
-def newest_position(status) -> tuple:
-    """Return (x, y, theta) of the newest robot_status."""
-    return tuple(float(v) for v in POSITION.fullmatch(status.latest().data).groups())
-
-
 def test_the_seed_walk_through_of_the_readme(walk_through, test_node):
     status = test_node.record(String, 'robot_status')
     shells = shell_commands(REPO / 'README.md', "## The seed tutorial's walk-through")
+    started = time.monotonic()
     outputs = walk_through.play(shells)
     assert POSITION.search(outputs[-1]), outputs
-    status.wait_for(lambda m: POSITION.fullmatch(m.data)
-                    and float(POSITION.fullmatch(m.data).group(1)) > 0.35, timeout=30)
-    x, y, theta = newest_position(status)
-    assert x == pytest.approx(0.4, abs=0.05) and y == 0.0 and theta == 0.0
+    x, y, theta = settled_seed_position(status, started, moved_m=0.1)
+    assert 0.4 - SEED_SHORTFALL_M < x <= 0.45 and y == 0.0 and theta == 0.0, (x, y, theta)
     walk_through.stop()
 
 
@@ -139,10 +133,10 @@ def test_the_robot_controller_readme_example(walk_through, test_node):
     shells = shell_commands(REPO / 'src/robot_controller/README.md', '## Example')
     walk_through.play(shells)
     echo = walk_through.background[-1]
+    # 'accepted: strafe left 0.5 m' comes at once: it may go out before robot_controller's
+    # publisher has matched the echo (DDS discovery runs both ways; only the echo's side
+    # is seen here); 'done' comes 2.5 s later.
     echo.wait_for_output(r"data: 'done: strafe left'", timeout=30)
-    assert "data: 'accepted: strafe left 0.5 m'" in echo.output()
-    status.wait_for(lambda m: POSITION.fullmatch(m.data)
-                    and float(POSITION.fullmatch(m.data).group(2)) > 0.45, timeout=30)
-    x, y, theta = newest_position(status)
-    assert x == 0.0 and y == pytest.approx(0.5, abs=0.05) and theta == 0.0
+    x, y, theta = settled_seed_position(status, time.monotonic(), moved_m=0.1)
+    assert x == 0.0 and 0.5 - SEED_SHORTFALL_M < y <= 0.55 and theta == 0.0, (x, y, theta)
     walk_through.stop()
