@@ -37,6 +37,18 @@ def processes_with_marker(marker: str) -> list:
     return processes_with_variable(RUN_MARKER, marker)
 
 
+def interrupt_group(process: subprocess.Popen, timeout: float = 15.0) -> int:
+    """Ctrl-C a process's group (as the shell does), SIGKILL it after timeout; return the code."""
+    if process.poll() is None:
+        os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    return process.returncode
+
+
 class OutputProcess:
     """A process whose output lines (stdout and stderr) are kept with their arrival times."""
 
@@ -118,13 +130,7 @@ class TerminalProcess:
 
     def stop(self) -> int:
         """Ctrl-C, as in the shell; return the exit code."""
-        if self.process.poll() is None:
-            os.killpg(self.process.pid, signal.SIGINT)
-            try:
-                self.process.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait()
+        interrupt_group(self.process)
         self.close()
         return self.process.returncode
 

@@ -16,7 +16,6 @@ Integration: lockstep. Simulated time waits for the stack, and a silent stack is
 import os
 from pathlib import Path
 import signal
-import subprocess
 import sys
 import time
 
@@ -24,7 +23,7 @@ from mecanum_control import esp32_protocol as proto
 import pytest
 from rosgraph_msgs.msg import Clock
 import serial
-from tests.conftest import OutputProcess
+from tests.conftest import interrupt_group, OutputProcess
 
 pytestmark = pytest.mark.integration
 
@@ -44,13 +43,7 @@ class Process(OutputProcess):
         super().__init__(command, env, cwd=str(REPO))
 
     def stop(self):
-        if self.process.poll() is None:
-            os.killpg(self.process.pid, signal.SIGINT)
-            try:
-                self.process.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait()
+        interrupt_group(self.process)
 
 
 def test_the_simulator_waits_for_the_board_and_names_it_when_it_stays_silent(
