@@ -154,10 +154,10 @@ def main() -> int:
               f'({sim:.1f} s simulated in {wall:.1f} s wall), verdict '
               f'{results[-1]["verdict"]}{failure}')
         unit = 'node' if mode == 'standalone' else 'process'
-        print(f'{unit:<24} {"CPU % of a core":>16} {"peak RSS MiB":>13}')
-        print(f'{"-" * 24} {"-" * 16} {"-" * 13}')
+        print(f'{unit:<24} {"CPU % of a core":>16} {"peak RSS MiB":>13} {"start CPU s":>12}')
+        print(f'{"-" * 24} {"-" * 16} {"-" * 13} {"-" * 12}')
         for name, cpu, rss in rows:
-            print(f'{name:<24} {cpu:>16.1f} {rss:>13.1f}')
+            print(f'{name:<24} {cpu:>16.1f} {rss:>13.1f} {sampler.start[name]:>12.2f}')
         print(f'{"total":<24} {sum(r[1] for r in rows):>16.1f} '
               f'{sum(r[2] for r in rows):>13.1f}')
     print(f'\n{"clock":<9} {"mode":<11} {"requested":>9} {"achieved":>8} {"verdict":>8} '
