@@ -17,6 +17,8 @@ A policy recorded as 'unknown' is offered as 'system_default'.
 from dataclasses import dataclass, replace
 from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
+from mecanum_bringup.bag_writer import OfferedQos
+
 #: Depth of rosbag2's default history (rmw_qos_profile_default).
 DEFAULT_DEPTH = 10
 _INFINITE_NS = {2 ** 63 - 1, 0x7FFFFFFF * 10 ** 9 + 0xFFFFFFFF,
@@ -34,18 +36,12 @@ _DURATIONS = ('deadline', 'lifespan', 'liveliness_lease_duration')
 
 
 @dataclass(frozen=True)
-class Offer:
-    """A publisher QoS: policies by rmw name, durations in ns (0 = unspecified = infinite)."""
+class Offer(OfferedQos):
+    """
+    A publisher QoS: the recorder's OfferedQos (one definition of the fields).
 
-    history: str = 'keep_last'
-    depth: int = DEFAULT_DEPTH
-    reliability: str = 'reliable'
-    durability: str = 'volatile'
-    deadline_ns: int = 0
-    lifespan_ns: int = 0
-    liveliness: str = 'system_default'
-    liveliness_lease_duration_ns: int = 0
-    avoid_ros_namespace_conventions: bool = False
+    Policies by rmw name, durations in ns (0 = unspecified = infinite).
+    """
 
     def matching_key(self) -> tuple:
         """Return the policies that decide matching (rosbag2 compares these only)."""
