@@ -38,6 +38,7 @@ BOARD_FILES: Dict[str, Path] = {
     'hardware_esp32.py': FIRMWARE / 'hardware_esp32.py',
     'h_bridge.py': FIRMWARE / 'h_bridge.py',
     'imu_drivers.py': FIRMWARE / 'imu_drivers.py',
+    'pin_map.py': FIRMWARE / 'pin_map.py',
     'mecanum_control/__init__.py': PACKAGE / '__init__.py',
     'mecanum_control/esp32_wire.py': PACKAGE / 'esp32_wire.py',
     'mecanum_control/board_core.py': PACKAGE / 'board_core.py',

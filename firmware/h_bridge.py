@@ -13,9 +13,12 @@ Drivers:
   (IN1 = IN2 = 0).
 * ``DRV8833``: two inputs per motor, both PWM. Zero duty brakes (both high) or coasts
   (both low).
+* ``PWM_DIR`` (Cytron MDD10A, MD10C and the like): one PWM pin and one direction pin
+  per motor. DIR high turns the motor forward as wired; zero duty is PWM off, which
+  these drivers turn into a brake (BRAKE_AT_ZERO cannot make them coast).
 """
 
-DRIVERS = ('TB6612', 'L298N', 'DRV8833')
+DRIVERS = ('TB6612', 'L298N', 'DRV8833', 'PWM_DIR')
 DUTY_SCALE = 10000
 PWM_FULL = 65535
 
@@ -42,6 +45,19 @@ def direction_pins_outputs(duty, brake):
     if brake:
         return PWM_FULL, 1, 1
     return 0, 0, 0
+
+
+def pwm_dir_outputs(duty):
+    """
+    PWM_DIR: return (pwm duty_u16, dir) for a raw duty.
+
+    Positive duty: DIR high; negative: DIR low; zero: PWM off, DIR low.
+    """
+    if duty > 0:
+        return pwm_level(duty), 1
+    if duty < 0:
+        return pwm_level(duty), 0
+    return 0, 0
 
 
 def two_pwm_outputs(duty, brake):

@@ -21,6 +21,13 @@ import h_bridge
 import imu_drivers
 from machine import ADC, Encoder, I2C, Pin, PWM, UART, WDT
 import micropython
+import pin_map
+
+#: While the loop waits for the host, it looks for input this often (microseconds).
+#: select.poll with a timeout sleeps whole FreeRTOS ticks (10 ms at the default
+#: 100 Hz) and serial input does not wake it, so the wait is poll(0) and sleep_us
+#: slices: a frame is taken within about this long of its arrival.
+WAIT_SLICE_US = 200
 
 
 class Esp32Hardware:
@@ -31,13 +38,14 @@ class Esp32Hardware:
     brownout_reset = False
 
     def __init__(self, config):
-        """Set up the motors, stopped (call start() for the rest)."""
+        """Check the pin map (ValueError: no pin touched), set up the motors, stopped."""
+        pin_map.check(config)
         self.config = config
         self.ticks_us = time.ticks_us
         self.ticks_diff = time.ticks_diff
         self.ticks_add = time.ticks_add
+        self.sleep_us = time.sleep_us
         self._brake = config.BRAKE_AT_ZERO
-        self._two_pwm = config.DRIVER == 'DRV8833'
         if config.DRIVER not in h_bridge.DRIVERS:
             raise ValueError('board_config.DRIVER must be one of %s' % (h_bridge.DRIVERS,))
         self._motors = []
@@ -58,13 +66,16 @@ class Esp32Hardware:
             self._encoders.append((encoder, -1 if wiring['invert'] else 1))
         self._imu = None
         if config.IMU is not None:
+            # timeout: the ESP32's hardware I2C takes it in microseconds (50000 if not
+            # given: a stuck bus would cost 50 ms a read).
             i2c = I2C(config.I2C_ID, scl=Pin(config.I2C_SCL), sda=Pin(config.I2C_SDA),
-                      freq=config.I2C_FREQ_HZ)
-            try:
-                self._imu = imu_drivers.DRIVERS[config.IMU](i2c, config.IMU_ADDRESS)
-            except OSError:
-                self._imu = None   # absent: IMU_FAULT from the first read on
-        self._imu_wanted = config.IMU is not None
+                      freq=config.I2C_FREQ_HZ, timeout=config.I2C_TIMEOUT_US)
+            driver = imu_drivers.DRIVERS[config.IMU]
+            address = config.IMU_ADDRESS
+            # Set up at the first read, and again every IMU_RETRY_MS while it fails:
+            # an IMU absent at boot or lost later comes back (IMU_FAULT meanwhile).
+            self._imu = imu_drivers.RetryingImu(lambda: driver(i2c, address), time,
+                                                config.IMU_RETRY_MS)
         self._battery = None
         if config.BATTERY_ADC_PIN is not None:
             self._battery = ADC(Pin(config.BATTERY_ADC_PIN), atten=ADC.ATTN_11DB)
@@ -88,8 +99,16 @@ class Esp32Hardware:
 
     @staticmethod
     def _make_motor(wiring, freq_hz):
-        """Return (kind, outputs, sign) of one motor's pins."""
+        """
+        Return (first, second, third, sign): one motor's outputs and its invert.
+
+        TB6612/L298N: (PWM, IN1, IN2); DRV8833: (PWM IN1, PWM IN2, None); PWM_DIR:
+        (PWM, DIR, [DIR's level], kept here: an output pin's value() is not its level).
+        """
         sign = -1 if wiring['invert'] else 1
+        if 'dir' in wiring:
+            pwm = PWM(Pin(wiring['pwm'], Pin.OUT), freq=freq_hz, duty_u16=0)
+            return (pwm, Pin(wiring['dir'], Pin.OUT, value=0), [0], sign)
         if 'pwm' in wiring:
             pwm = PWM(Pin(wiring['pwm'], Pin.OUT), freq=freq_hz, duty_u16=0)
             return (pwm, Pin(wiring['in1'], Pin.OUT, value=0),
@@ -102,17 +121,31 @@ class Esp32Hardware:
         """Drive the motors: raw duties FL, FR, RL, RR (-10000 .. 10000)."""
         for motor, duty in zip(self._motors, duties):
             first, second, third, sign = motor
-            if third is None:   # DRV8833: two PWM inputs
+            if type(third) is list:   # PWM_DIR: never the old PWM the new way round
+                level, direction = h_bridge.pwm_dir_outputs(duty * sign)
+                if direction != third[0]:
+                    first.duty_u16(0)
+                    second.value(direction)
+                    third[0] = direction
+                first.duty_u16(level)
+            elif third is None:   # DRV8833: two PWM inputs
                 level_1, level_2 = h_bridge.two_pwm_outputs(duty * sign, self._brake)
                 first.duty_u16(level_1)
                 second.duty_u16(level_2)
             else:
+                # Every pin write leaves the motor braking, coasting or driven the new
+                # way at no more than the old or new level: braking sets the pins first
+                # (from driving, one write brakes) and the PWM last; driving lowers the
+                # PWM first. (Braking PWM-first, then IN1, then IN2 drove a stopped
+                # motor at full PWM between the two pin writes.)
                 level, in1, in2 = h_bridge.direction_pins_outputs(duty * sign, self._brake)
-                if level == 0 or in1 == in2:   # stopping: PWM first, then the pins
+                if in1 and in2:
+                    second.value(1)
+                    third.value(1)
                     first.duty_u16(level)
-                    second.value(in1)
-                    third.value(in2)
                 else:
+                    if level < first.duty_u16():
+                        first.duty_u16(level)
                     second.value(in1)
                     third.value(in2)
                     first.duty_u16(level)
@@ -122,13 +155,10 @@ class Esp32Hardware:
         return [encoder.value() * sign for encoder, sign in self._encoders]
 
     def read_imu(self):
-        """Return (ax, ay, az, gx, gy, gz) or None when the IMU fails."""
+        """Return (ax, ay, az, gx, gy, gz) or None when the IMU fails (retried)."""
         if self._imu is None:
             return None
-        try:
-            return self._imu.read()
-        except OSError:
-            return None
+        return self._imu.read()
 
     def battery_mv(self):
         """Return the battery voltage in mV (0: not measured)."""
@@ -162,8 +192,19 @@ class Esp32Hardware:
 
     # --- for main.py ----------------------------------------------------------------------
     def idle(self, wait_us):
-        """Feed the watchdog, then wait for host bytes for up to wait_us (at most 2 ms)."""
+        """
+        Feed the watchdog, then wait up to wait_us for host bytes.
+
+        Returns as soon as input is there (checked every WAIT_SLICE_US) or wait_us has
+        passed; never blocks in poll, whose timeout the ESP32 rounds to whole ticks.
+        """
         self._watchdog.feed()
-        wait_ms = wait_us // 1000
-        if wait_ms > 0:
-            self._poll.poll(2 if wait_ms > 2 else wait_ms)
+        if wait_us <= 0:
+            return
+        start = self.ticks_us()
+        poll = self._poll
+        while not poll.poll(0):
+            left = wait_us - self.ticks_diff(self.ticks_us(), start)
+            if left <= 0:
+                return
+            self.sleep_us(WAIT_SLICE_US if left > WAIT_SLICE_US else left)

@@ -242,12 +242,13 @@ def case_imu_failure_sets_imu_fault_and_stops_samples():
 
 
 def case_estop_and_driver_fault_keep_the_motors_off():
-    """ESTOP_INPUT follows the input; MOTOR_DRIVER_FAULT latches until cleared and gone."""
+    """ESTOP_INPUT and MOTOR_DRIVER_FAULT latch until cleared with their cause gone."""
     hw, core, host = make()
     hw.estop = True
     drive(core, hw, host, (5000, 5000, 5000, 5000), 100000)
     assert hw.duties == [0] * 4 and core.faults & wire.ESTOP_INPUT
     hw.estop = False
+    host.clear(wire.ESTOP_INPUT)
     drive(core, hw, host, (5000, 5000, 5000, 5000), 40000)
     assert hw.duties == [5000] * 4 and not core.faults & wire.ESTOP_INPUT
     hw.fault = True
@@ -262,6 +263,61 @@ def case_estop_and_driver_fault_keep_the_motors_off():
     host.clear(wire.MOTOR_DRIVER_FAULT | wire.COMMAND_TIMEOUT | wire.ESTOP_INPUT)
     drive(core, hw, host, (5000, 5000, 5000, 5000), 40000)
     assert hw.duties == [5000] * 4 and core.faults == 0, core.faults
+
+
+def case_estop_stays_latched_until_the_host_clears_it():
+    """Keep the motors off after the e-stop is released; a clear resumes no old command."""
+    hw, core, host = make()
+    drive(core, hw, host, (6000, 6000, 6000, 6000), 100000)
+    assert hw.duties == [6000] * 4
+    hw.estop = True
+    run(core, hw, 20000)
+    assert hw.duties == [0] * 4 and core.faults & wire.ESTOP_INPUT
+    hw.estop = False                                  # released: still latched
+    drive(core, hw, host, (6000, 6000, 6000, 6000), 200000)
+    assert hw.duties == [0] * 4 and core.faults & wire.ESTOP_INPUT
+    hw.estop = True                                   # a clear while pressed: ignored
+    host.clear(0xFFFF)
+    run(core, hw, 20000)
+    assert core.faults & wire.ESTOP_INPUT
+    hw.estop = False
+    host.efforts((6000, 6000, 6000, 6000))            # the last command before the clear
+    run(core, hw, 10000)
+    host.clear(0xFFFF)                                # within its command timeout
+    run(core, hw, 10000)
+    assert not core.faults & wire.ESTOP_INPUT
+    assert hw.duties == [0] * 4, hw.duties            # not resumed: a new command needed
+    host.efforts((-3000, -3000, -3000, -3000))
+    run(core, hw, 10000)
+    assert hw.duties == [-3000] * 4
+    hw.estop = True                                   # again, and this time the last
+    run(core, hw, 10000)                              # command and the clear arrive
+    hw.estop = False                                  # in one read
+    host.efforts((7000, 7000, 7000, 7000))
+    host.clear(0xFFFF)
+    run(core, hw, 1000)
+    assert not core.faults & wire.ESTOP_INPUT and hw.duties == [0] * 4, hw.duties
+
+
+def case_unplugged_encoder_trips_at_low_duty():
+    """Trip ENCODER_FAULT on RL's silent counter at duty 0.2 after the weighted time."""
+    hw, core, host = make()
+    hw.unplugged[2] = True
+    # dead_full_duty_ms of duty-weighted time at 0.2 duty: 500 ms / 0.2 = 2.5 s.
+    trip_us = PARAMS['dead_full_duty_ms'] * 1000 * 10000 // 2000
+    assert trip_us == 2500000, trip_us
+    drive(core, hw, host, (2000, 2000, 2000, 2000), trip_us - 100000)
+    assert not core.faults & wire.ENCODER_FAULT and hw.duties == [2000] * 4
+    drive(core, hw, host, (2000, 2000, 2000, 2000), 200000)
+    assert core.faults & wire.ENCODER_FAULT and core.encoder_fault_wheels == 4   # RL
+    assert hw.duties == [0] * 4
+
+
+def case_slow_healthy_wheels_trip_no_encoder_fault():
+    """Healthy wheels held at low duties (0.1, 0.15) for 6 s never trip ENCODER_FAULT."""
+    hw, core, host = make()
+    drive(core, hw, host, (1000, -1000, 1500, -1500), 6000000)
+    assert not core.faults & wire.ENCODER_FAULT, core.faults
 
 
 def case_counters_and_clocks_wrap():
@@ -286,22 +342,39 @@ def case_h_bridge_outputs():
     assert h_bridge.two_pwm_outputs(2500, True) == (16383, 0)
     assert h_bridge.two_pwm_outputs(-2500, False) == (0, 16383)
     assert h_bridge.two_pwm_outputs(0, True) == (65535, 65535)
+    assert h_bridge.pwm_dir_outputs(5000) == (32767, 1)
+    assert h_bridge.pwm_dir_outputs(-2500) == (16383, 0)
+    assert h_bridge.pwm_dir_outputs(0) == (0, 0)
 
 
 class FakeI2c:
     """An MPU-6050 on a bus: remembers register writes, answers reads from a buffer."""
 
-    def __init__(self, data):
+    def __init__(self, data, who_am_i=0x68):
         self.data = data
+        self.who_am_i = who_am_i
         self.writes = []
         self.fail = False
+        self.transfers = 0      # every bus access (each could cost an I2C timeout)
 
     def writeto_mem(self, address, register, data):
         """Record a register write."""
+        self.transfers += 1
+        if self.fail:
+            raise OSError(19)
         self.writes.append((address, register, bytes(data)))
+
+    def readfrom_mem(self, address, register, nbytes):
+        """Answer WHO_AM_I (0x75), or fail like an absent chip."""
+        self.transfers += 1
+        if self.fail:
+            raise OSError(19)
+        assert register == 0x75 and nbytes == 1, (register, nbytes)
+        return bytes((self.who_am_i,))
 
     def readfrom_mem_into(self, address, register, buffer):
         """Fill buffer from the sample, or fail like an absent chip."""
+        self.transfers += 1
         if self.fail:
             raise OSError(19)
         buffer[:] = self.data
@@ -325,6 +398,133 @@ def case_mpu6050_scales_to_si_units():
         pass
     else:
         raise AssertionError('a failing bus must raise OSError')
+
+
+class FakeClock:
+    """MicroPython's ticks_ms, ticks_diff, ticks_add on a clock the test moves."""
+
+    def __init__(self):
+        self.ms = 0
+
+    def ticks_ms(self):
+        """Return the clock, ms."""
+        return self.ms
+
+    @staticmethod
+    def ticks_diff(new, old):
+        """Return new - old."""
+        return new - old
+
+    @staticmethod
+    def ticks_add(ticks, delta):
+        """Return ticks + delta."""
+        return ticks + delta
+
+
+def case_imu_absent_at_boot_is_retried_every_retry_ms():
+    """Take in an IMU absent at boot at the next retry; between retries the bus rests."""
+    import imu_drivers
+    bus = FakeI2c(bytes(14))
+    bus.fail = True
+    clock = FakeClock()
+    imu = imu_drivers.RetryingImu(lambda: imu_drivers.Mpu6050(bus, 0x68), clock, 1000)
+    assert imu.read() is None and imu.attempts == 1
+    used = bus.transfers
+    clock.ms = 999
+    assert imu.read() is None and bus.transfers == used   # no bus access before the retry
+    bus.fail = False                                     # plugged in
+    clock.ms = 1000
+    assert imu.read() == (0.0, 0.0, 0.0, 0.0, 0.0, 0.0) and imu.attempts == 2
+
+
+def case_imu_failing_later_costs_one_timeout_per_retry():
+    """Cost a bus stuck mid-run one failed read per retry, then read again once it is back."""
+    import imu_drivers
+    bus = FakeI2c(bytes(14))
+    clock = FakeClock()
+    imu = imu_drivers.RetryingImu(lambda: imu_drivers.Mpu6050(bus, 0x68), clock, 1000)
+    assert imu.read() is not None
+    bus.fail = True
+    clock.ms = 5000
+    assert imu.read() is None
+    used = bus.transfers
+    for ms in range(5010, 6000, 10):                     # 99 reports' reads at 100 Hz
+        clock.ms = ms
+        assert imu.read() is None
+    assert bus.transfers == used, bus.transfers - used
+    bus.fail = False
+    clock.ms = 6000
+    assert imu.read() is not None and imu.attempts == 2
+
+
+def case_imu_of_another_kind_is_refused_by_who_am_i():
+    """WHO_AM_I 0x12 at the MPU-6050's address: no samples, the reason kept."""
+    import imu_drivers
+    bus = FakeI2c(bytes(14), who_am_i=0x12)
+    imu = imu_drivers.RetryingImu(lambda: imu_drivers.Mpu6050(bus, 0x68), FakeClock(), 1000)
+    assert imu.read() is None
+    assert 'WHO_AM_I 0x12' in imu.last_error, imu.last_error
+    assert bus.writes == []                              # never configured
+    for who in (0x68, 0x70, 0x71, 0x73):
+        imu_drivers.Mpu6050(FakeI2c(bytes(14), who_am_i=who), 0x68)
+
+
+class Config:
+    """A copy of board_config's settings that a case may change."""
+
+    def __init__(self, **changes):
+        import board_config
+        for name in dir(board_config):
+            if name.isupper():
+                setattr(self, name, getattr(board_config, name))
+        for name in changes:
+            setattr(self, name, changes[name])
+
+
+def case_pin_map_of_board_config_is_sound():
+    """Find no clash in the shipped map; refuse 'uart' without pins, naming the free ones."""
+    import pin_map
+    assert pin_map.problems(Config()) == []
+    assert pin_map.free_pins(Config()) == [37, 38]       # input only: no UART TX there
+    found = pin_map.problems(Config(SERIAL='uart'))
+    assert found == ["SERIAL = 'uart' needs UART_TX and UART_RX; pins free in this map: "
+                     '37, 38'], found
+    # IMU = None frees the I2C pins: a UART there clashes with nothing.
+    assert pin_map.problems(Config(SERIAL='uart', IMU=None, UART_TX=21, UART_RX=22)) == []
+
+
+def case_pin_map_names_every_clash():
+    """UART on a motor's pins, outputs on input-only and flash pins, unknown GPIOs."""
+    import pin_map
+    found = pin_map.problems(Config(SERIAL='uart', UART_TX=17, UART_RX=16))
+    assert found == ['GPIO 16 is used twice: MOTORS[2] (RL) in1 and UART_RX',
+                     'GPIO 17 is used twice: MOTORS[2] (RL) in2 and UART_TX'], found
+    motors = list(Config().MOTORS)
+    motors[0] = {'pwm': 34, 'in1': 6, 'in2': 24, 'invert': False}
+    found = pin_map.problems(Config(MOTORS=motors, ESTOP_PIN=12))
+    assert found == ['GPIO 34 (MOTORS[0] (FL) pwm): input only, cannot drive an output',
+                     'GPIO 6 (MOTORS[0] (FL) in1): reserved, SPI flash',
+                     'GPIO 24 (MOTORS[0] (FL) in2): the ESP32 has no such GPIO',
+                     'GPIO 12 (ESTOP_PIN): strapping pin MTDI: high at reset selects '
+                     '1.8 V flash',
+                     'GPIO 34 is used twice: MOTORS[0] (FL) pwm and ENCODERS[0] (FL) a'], found
+    try:
+        pin_map.check(Config(SERIAL='uart', UART_TX=17, UART_RX=16))
+    except ValueError as error:
+        assert 'GPIO 17 is used twice' in str(error), error
+    else:
+        raise AssertionError('check must refuse a clashing map')
+
+
+def case_pin_map_wants_the_drivers_pins():
+    """Check each motor's pins against the driver: PWM_DIR wants pwm and dir."""
+    import pin_map
+    motors = ({'pwm': 25, 'dir': 26, 'invert': False}, {'pwm': 32, 'dir': 33, 'invert': True},
+              {'pwm': 4, 'dir': 16, 'invert': False}, {'pwm': 18, 'dir': 19, 'invert': True})
+    assert pin_map.problems(Config(DRIVER='PWM_DIR', MOTORS=motors)) == []
+    found = pin_map.problems(Config(DRIVER='PWM_DIR'))
+    assert found[0] == 'MOTORS[0] (FL): PWM_DIR wants the pins pwm, dir', found
+    assert len(found) == 4, found
 
 
 def case_names():

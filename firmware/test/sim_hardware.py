@@ -5,8 +5,9 @@ The firmware tests run the firmware's core on it under both interpreters. Time o
 moves in :meth:`SimHardware.advance`; the serial line is two byte buffers (``rx``: what
 the host sent, ``tx``: what the board wrote); each wheel turns at its duty times
 ``full_speed_counts_s`` (no lag), unless ``blocked``; ``reversed`` flips an encoder as a
-miswired one; ``drift_counts_s`` turns a wheel without a duty (encoders swapped, a
-wheel pushed). ``imu_ok``, ``estop`` and ``fault`` are the inputs.
+miswired one; ``unplugged`` freezes an encoder's count (the wheel still turns);
+``drift_counts_s`` turns a wheel without a duty (encoders swapped, a wheel pushed).
+``imu_ok``, ``estop`` and ``fault`` are the inputs.
 """
 
 import math
@@ -30,6 +31,8 @@ class SimHardware:
         self._fraction = [0.0] * 4
         self.blocked = [False, False, False, False]
         self.reversed = [False, False, False, False]
+        self.unplugged = [False, False, False, False]
+        self._frozen = [0, 0, 0, 0]
         self.drift_counts_s = [0, 0, 0, 0]
         self.imu_ok = True
         self.estop = False
@@ -69,8 +72,13 @@ class SimHardware:
         """Return the encoder counts (whole counts, as a counter reads them)."""
         out = []
         for index in range(4):
+            if self.unplugged[index]:
+                out.append(self._frozen[index])
+                continue
             value = self._counts[index]
-            out.append(-value if self.reversed[index] else value)
+            value = -value if self.reversed[index] else value
+            self._frozen[index] = value
+            out.append(value)
         return out
 
     def read_imu(self):

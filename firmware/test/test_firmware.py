@@ -210,6 +210,11 @@ def micropython_with_fake_machine():
             '    if name.isupper():\n'
             '        setattr(config, name, getattr(board_config, name))\n'
             "config.SERIAL = 'uart'\n"
+            # The shipped map has no pin for a UART: move RL's encoder to the free
+            # input-only 37/38 and give the UART its 5/13.
+            "config.ENCODERS = config.ENCODERS[:2] + ({'a': 37, 'b': 38, 'invert': False},"
+            ' config.ENCODERS[3])\n'
+            'config.UART_TX, config.UART_RX = 5, 13\n'
             'import hardware_esp32\n'
             'hw = hardware_esp32.Esp32Hardware(config)\n'
             "boot = [(machine.PWMS[m['pwm']].level, machine.PINS[m['in1']].level,\n"
@@ -275,3 +280,119 @@ def test_firmware_core_on_the_esp32_hardware_layer(micropython_with_fake_machine
     status = [f.message for f in frames if isinstance(f.message, proto.BoardStatus)][0]
     assert status.last_command_seq == 5 and status.faults == proto.FaultFlags(0)
     assert fl_level == '16383'
+
+
+def test_hardware_layer_refuses_a_clashing_pin_map_before_touching_a_pin(
+        micropython_with_fake_machine):
+    """UART on RL's direction pins (the old defaults 17/16): ValueError, not one pin set."""
+    session = micropython_with_fake_machine
+    out = session.run(
+        'saved = (dict(machine.PINS), dict(machine.PWMS))\n'
+        'machine.PINS.clear()\n'
+        'machine.PWMS.clear()\n'
+        'import board_config\n'
+        'bad = Config()\n'
+        'for name in dir(board_config):\n'
+        '    if name.isupper():\n'
+        '        setattr(bad, name, getattr(board_config, name))\n'
+        "bad.SERIAL, bad.UART_TX, bad.UART_RX = 'uart', 17, 16\n"
+        'try:\n'
+        '    hardware_esp32.Esp32Hardware(bad)\n'
+        '    print("constructed")\n'
+        'except ValueError as error:\n'
+        '    print(repr(str(error)))\n'
+        'print(len(machine.PINS), len(machine.PWMS))\n'
+        'machine.PINS.update(saved[0])\n'
+        'machine.PWMS.update(saved[1])\n')
+    message, touched = out.splitlines()
+    assert 'GPIO 16 is used twice: MOTORS[2] (RL) in1 and UART_RX' in message, out
+    assert 'GPIO 17 is used twice: MOTORS[2] (RL) in2 and UART_TX' in message, out
+    assert touched == '0 0', out
+
+
+def test_hardware_layer_takes_serial_input_within_a_slice_not_a_tick(
+        micropython_with_fake_machine):
+    """
+    On a model of the ESP32's poll, idle() returns within WAIT_SLICE_US of a byte's arrival.
+
+    The model (what MicroPython 1.27's ESP32 port does, by reading its sources): a
+    poll with a timeout sleeps whole 10 ms FreeRTOS ticks and input does not wake it;
+    poll(0) answers at once. The clock is the model's: no real time is waited.
+    """
+    session = micropython_with_fake_machine
+    out = session.run(
+        'class Clock:\n'
+        '    us = 0\n'
+        'class EspPoll:\n'
+        '    arrival_us = 300\n'
+        '    def ready(self):\n'
+        '        return [(hw._uart, 1)] if Clock.us >= self.arrival_us else []\n'
+        '    def poll(self, timeout_ms=-1):\n'
+        '        if not self.ready() and timeout_ms != 0:\n'
+        '            Clock.us += ((max(timeout_ms, 1) + 9) // 10) * 10000\n'
+        '        return self.ready()\n'
+        'def sleep_us(us):\n'
+        '    Clock.us += us\n'
+        "real = (hw._poll, hw.ticks_us, hw.ticks_diff, getattr(hw, 'sleep_us', None))\n"
+        'hw._poll, hw.ticks_us, hw.sleep_us = EspPoll(), lambda: Clock.us, sleep_us\n'
+        'hw.ticks_diff = lambda new, old: new - old\n'
+        'feeds = hw._watchdog.feeds\n'
+        'hw.idle(9000)\n'
+        'woke = Clock.us\n'
+        'Clock.us, hw._poll.arrival_us = 0, 10 ** 9\n'
+        'hw.idle(9000)\n'
+        'print(woke, Clock.us, hw._watchdog.feeds - feeds,'
+        " getattr(hardware_esp32, 'WAIT_SLICE_US', 0))\n"
+        'hw._poll, hw.ticks_us, hw.ticks_diff, hw.sleep_us = real\n')
+    woke_us, quiet_us, feeds, slice_us = (int(value) for value in out.split())
+    assert 300 <= woke_us <= 300 + slice_us, out      # the byte at 300 us is taken at once
+    assert quiet_us == 9000, out                      # no input: back when the report is due
+    assert feeds == 2 and slice_us <= 500, out
+
+
+def test_hardware_layer_retries_an_imu_absent_at_boot(micropython_with_fake_machine):
+    """No MPU-6050 at start(): read_imu is None; plugged in, the next retry reads it."""
+    session = micropython_with_fake_machine
+    out = session.run(
+        'saved = (dict(machine.PINS), dict(machine.PWMS), dict(machine.ENCODERS))\n'
+        'machine.IMU_PRESENT[0] = False\n'
+        'config.IMU_RETRY_MS = 0\n'
+        'late = hardware_esp32.Esp32Hardware(config)\n'
+        'late.start()\n'
+        'print(late.read_imu(), late.read_imu())\n'
+        'machine.IMU_PRESENT[0] = True\n'
+        'print(late.read_imu() is not None)\n'
+        'print(late._imu.attempts, late._imu.last_error)\n'
+        'print(late._imu.imu.i2c.timeout)\n'
+        'config.IMU_RETRY_MS = 1000\n'
+        'for table, old in zip((machine.PINS, machine.PWMS, machine.ENCODERS), saved):\n'
+        '    table.clear()\n'
+        '    table.update(old)\n')
+    assert out.splitlines() == ['None None', 'True', '3 [Errno 19] ENODEV', '5000'], out
+
+
+def test_hardware_layer_drives_a_pwm_dir_driver(micropython_with_fake_machine):
+    """PWM_DIR (Cytron MDD10A): duty to PWM level and DIR with the inverts; zero: PWM off."""
+    session = micropython_with_fake_machine
+    out = session.run(
+        'saved = (dict(machine.PINS), dict(machine.PWMS))\n'
+        'pwm_dir = Config()\n'
+        'for name in dir(config):\n'
+        '    if name.isupper():\n'
+        '        setattr(pwm_dir, name, getattr(config, name))\n'
+        "pwm_dir.DRIVER = 'PWM_DIR'\n"
+        "pwm_dir.MOTORS = tuple({'pwm': m['pwm'], 'dir': m['in1'], 'invert': m['invert']}\n"
+        '                       for m in config.MOTORS)\n'
+        'cytron = hardware_esp32.Esp32Hardware(pwm_dir)\n'
+        'def levels():\n'
+        "    return [(machine.PWMS[m['pwm']].level, machine.PINS[m['dir']].level)\n"
+        '            for m in pwm_dir.MOTORS]\n'
+        'print(levels())\n'
+        'cytron.set_duties((5000, 5000, -10000, 0))\n'
+        'print(levels())\n'
+        'machine.PINS.update(saved[0])\n'
+        'machine.PWMS.update(saved[1])\n')
+    boot, driven = out.splitlines()
+    assert boot == '[(0, 0), (0, 0), (0, 0), (0, 0)]'
+    # FL forward; FR inverted as wired (DIR low); RL full backward; RR off.
+    assert driven == '[(32767, 1), (32767, 0), (65535, 0), (0, 0)]'

@@ -41,7 +41,7 @@ STUBBED_MODULES = ('machine', 'esp32', 'micropython', 'time', 'select')
 METHODS_USED = {
     'PWM': ('duty_u16',), 'Pin': ('value',), 'Encoder': ('value',), 'ADC': ('read_uv',),
     'UART': ('read', 'write'), 'WDT': ('feed',),
-    'I2C': ('readfrom_mem_into', 'writeto_mem'),
+    'I2C': ('readfrom_mem_into', 'readfrom_mem', 'writeto_mem'),
 }
 
 
@@ -219,3 +219,74 @@ def test_flash_stages_every_firmware_file(capsys):
         (FLASH.PACKAGE / 'esp32_wire.py').read_text()
     on_board = {path.name for path in FIRMWARE.glob('*.py')} - {'flash.py'}
     assert on_board <= set(FLASH.BOARD_FILES), on_board - set(FLASH.BOARD_FILES)
+
+
+#: Keywords the ESP32 port takes that the generic stubs lack: machine.I2C's timeout
+#: (microseconds; ports/esp32/machine_i2c.c), the hardware layer's guard on a stuck bus.
+ESP32_KEYWORDS_NOT_IN_STUBS = {'I2C': {'timeout'}}
+
+
+def constructor_parameters(class_node: ast.ClassDef):
+    """Return (names, takes **kwargs) of every __init__ overload of a class, merged."""
+    names, open_ended = set(), False
+    for node in class_node.body:
+        if isinstance(node, ast.FunctionDef) and node.name == '__init__':
+            args = node.args
+            names |= {arg.arg for arg in args.posonlyargs + args.args + args.kwonlyargs}
+            open_ended |= args.kwarg is not None
+    return names, open_ended
+
+
+def machine_keywords_used():
+    """Return {class: keywords} the hardware layer passes to machine's constructors."""
+    tree = parse(FIRMWARE / 'hardware_esp32.py')
+    classes = {alias.asname or alias.name for node in tree.body
+               if isinstance(node, ast.ImportFrom) and node.module == 'machine'
+               for alias in node.names}
+    used = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id in classes:
+            used.setdefault(node.func.id, set()).update(
+                keyword.arg for keyword in node.keywords)
+    return used
+
+
+def test_hardware_layer_keywords_exist_in_the_esp32_stubs():
+    """Every keyword the hardware layer gives machine's constructors is in the stubs."""
+    stubs = {node.name: node for node in stub_tree('machine').body
+             if isinstance(node, ast.ClassDef)}
+    missing = []
+    for class_name, keywords in machine_keywords_used().items():
+        names, open_ended = constructor_parameters(stubs[class_name])
+        extra = ESP32_KEYWORDS_NOT_IN_STUBS.get(class_name, set())
+        if not open_ended:
+            missing += [f'{class_name}({keyword}=)' for keyword in sorted(keywords)
+                        if keyword not in names | extra]
+    assert not missing, f'not in the ESP32 stubs of MicroPython 1.27: {missing}'
+    assert machine_keywords_used()['I2C'] >= {'timeout'}
+
+
+def test_unix_stand_in_takes_the_stubs_keywords():
+    """The unix board's stand-in machine: each constructor takes the stubs' keywords."""
+    stubs = {node.name: node for node in stub_tree('machine').body
+             if isinstance(node, ast.ClassDef)}
+    stand_in = {node.name: node for node in parse(FIRMWARE / 'test' / 'unix_board'
+                                                  / 'machine.py').body
+                if isinstance(node, ast.ClassDef)}
+    wrong = []
+    for class_name, keywords in machine_keywords_used().items():
+        names, open_ended = constructor_parameters(stand_in[class_name])
+        stub_names, stub_open = constructor_parameters(stubs[class_name])
+        for keyword in keywords:
+            if keyword not in names and not open_ended:
+                wrong.append(f'{class_name}({keyword}=) refused by the stand-in')
+        # Keyword-only in the stubs: the same names in the stand-in (a keyword the
+        # board takes must not be positional-only there, nor the reverse).
+        for node in stubs[class_name].body:
+            if isinstance(node, ast.FunctionDef) and node.name == '__init__':
+                for arg in node.args.kwonlyargs:
+                    if arg.arg not in names and not open_ended:
+                        wrong.append(f'{class_name}: stub keyword {arg.arg} missing')
+        assert stub_names or stub_open
+    assert not wrong, wrong

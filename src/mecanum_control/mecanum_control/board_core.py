@@ -22,10 +22,13 @@ hardware: everything goes through the hardware layer ``hw``, which provides
 :class:`BoardCore` speaks protocol version 1 (``doc/esp32_protocol.md``): it applies
 MOTOR_EFFORTS under the command watchdog, honours CLEAR_FAULTS, sends ENCODER_TICKS
 (50 Hz), IMU_SAMPLE (100 Hz) and BOARD_STATUS (10 Hz), and keeps the motors off at
-boot, when commands stop for their ``command_timeout_ms``, on ESTOP_INPUT,
-MOTOR_DRIVER_FAULT, and on ENCODER_FAULT: a wheel driven hard that does not turn
-(stalled, or its encoder is unplugged) or one that turns against its duty, or fast
-without one (a runaway: encoder or motor wired reversed, encoders swapped). Garbage
+boot, when commands stop for their ``command_timeout_ms``, on ESTOP_INPUT (latched:
+the e-stop drops the host's last command, and only CLEAR_FAULTS once the input is
+released ends it; the motors then wait for a new command), MOTOR_DRIVER_FAULT, and on
+ENCODER_FAULT: a wheel driven hard that does not turn (stalled), one driven at any
+duty that should move it whose counter does not count at all (encoder unplugged), one
+that turns against its duty, or fast without one (a runaway: encoder or motor wired
+reversed, encoders swapped). Garbage
 on the line, a host that goes away and one that comes back cost nothing but the
 frames they spoil: the decoder resynchronises at the next 0x00.
 """
@@ -42,11 +45,15 @@ STATUS_PERIOD_US = 100000
 #: ``board_params.py``). Duties are raw (10000 = full PWM), speeds in counts per second,
 #: times in milliseconds:
 #: stalled: |duty| >= stall_duty and |speed| < stall_speed_counts_s for stall_time_ms;
+#: dead encoder: |duty| >= dead_duty and not one count, for a duty-weighted time
+#: (sum of elapsed time x min(|duty|, stall_duty) / full duty) of dead_full_duty_ms:
+#: with 500 ms and stall_duty 0.5, 1 s at duty 0.5 or more (as stalled), 5 s at 0.1;
 #: runaway: |duty| >= runaway_duty and turning against it faster than
 #: runaway_speed_counts_s for runaway_time_ms, or |duty| <= free_duty and
 #: |speed| > free_speed_counts_s for free_time_ms; LOW_BATTERY below low_battery_mv
 #: (0: never).
 PARAM_NAMES = ('stall_duty', 'stall_speed_counts_s', 'stall_time_ms',
+               'dead_duty', 'dead_full_duty_ms',
                'runaway_duty', 'runaway_speed_counts_s', 'runaway_time_ms',
                'free_duty', 'free_speed_counts_s', 'free_time_ms', 'low_battery_mv')
 
@@ -106,6 +113,7 @@ class BoardCore:
         self._stall_us = [0, 0, 0, 0]
         self._against_us = [0, 0, 0, 0]
         self._free_us = [0, 0, 0, 0]
+        self._dead_us = [0, 0, 0, 0]   # duty-weighted time without a count
         self._update_levels()
 
     # --- the loop --------------------------------------------------------------------
@@ -179,8 +187,11 @@ class BoardCore:
         """
         if now is None:
             now = self.hw.ticks_us()
-        self.commanded = [max(-wire.EFFORT_SCALE, min(wire.EFFORT_SCALE, int(d)))
-                          for d in duties]
+        if self.faults & wire.ESTOP_INPUT:
+            self.commanded = list(_ZERO)   # latched e-stop: dropped, even in one batch
+        else:                              # with the CLEAR_FAULTS that follows it
+            self.commanded = [max(-wire.EFFORT_SCALE, min(wire.EFFORT_SCALE, int(d)))
+                              for d in duties]
         self.command_timeout_ms = command_timeout_ms
         self.last_command_seq = seq
         self.commands_received += 1
@@ -197,6 +208,9 @@ class BoardCore:
             self.encoder_fault_wheels = 0
             for index in range(4):
                 self._stall_us[index] = self._against_us[index] = self._free_us[index] = 0
+                self._dead_us[index] = 0
+        if bits & wire.ESTOP_INPUT and self.hw.estop_active():
+            bits &= ~wire.ESTOP_INPUT
         self.faults &= ~bits
 
     # --- safety --------------------------------------------------------------------------
@@ -208,8 +222,12 @@ class BoardCore:
             self.faults |= wire.COMMAND_TIMEOUT
         if hw.estop_active():
             self.faults |= wire.ESTOP_INPUT
-        else:
-            self.faults &= ~wire.ESTOP_INPUT
+        commanded = self.commanded
+        if self.faults & wire.ESTOP_INPUT and (commanded[0] or commanded[1] or commanded[2]
+                                               or commanded[3]):
+            # Latched: commands in force or arriving meanwhile are dropped, so the
+            # clear never resumes one; the host must command again after it.
+            self.commanded = list(_ZERO)
         if hw.driver_fault():
             self.faults |= wire.MOTOR_DRIVER_FAULT
         wanted = _ZERO if self.faults & STOPPING_FAULTS else self.commanded
@@ -244,6 +262,12 @@ class BoardCore:
                 self._against_us, index, elapsed_us, params['runaway_time_ms'],
                 magnitude >= params['runaway_duty']
                 and forward < -params['runaway_speed_counts_s'])
+            if magnitude >= params['dead_duty'] and moved == 0:
+                weight = min(magnitude, params['stall_duty'])   # never before stalled
+                self._dead_us[index] += elapsed_us * weight // wire.EFFORT_SCALE
+                tripped |= self._dead_us[index] >= params['dead_full_duty_ms'] * 1000
+            else:
+                self._dead_us[index] = 0
             tripped |= self._judge(
                 self._free_us, index, elapsed_us, params['free_time_ms'],
                 magnitude <= params['free_duty']

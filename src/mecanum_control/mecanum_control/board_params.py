@@ -22,6 +22,14 @@ from mecanum_control.robot_config import RobotConfig
 STALL_DUTY = 0.5
 STALL_SPEED_RAD_S = 0.5
 STALL_TIME_MS = 1000
+#: A wheel driven at DEAD_DUTY or more whose encoder gives not one count is dead
+#: (unplugged, or its counter's wires cut), once that has lasted DEAD_FULL_DUTY_MS
+#: weighted by the duty up to STALL_DUTY: 1 s at STALL_DUTY or more (never before the
+#: stall check), 2 s at 0.25, 5 s at DEAD_DUTY. Any duty
+#: that should move the wheel (a free gear motor starts at about 0.05-0.1) trips it;
+#: a wheel that creeps still counts, so only a silent counter does.
+DEAD_DUTY = 0.1
+DEAD_FULL_DUTY_MS = 500
 #: A wheel driven at this duty or more that turns against it faster than
 #: RUNAWAY_SPEED_RAD_S for RUNAWAY_TIME_MS is a runaway (encoder or motor reversed).
 RUNAWAY_DUTY = 0.2
@@ -44,6 +52,8 @@ def board_params(config: RobotConfig) -> Dict[str, int]:
         'stall_duty': round(STALL_DUTY * EFFORT_SCALE),
         'stall_speed_counts_s': round(STALL_SPEED_RAD_S * counts_per_rad),
         'stall_time_ms': STALL_TIME_MS,
+        'dead_duty': round(DEAD_DUTY * EFFORT_SCALE),
+        'dead_full_duty_ms': DEAD_FULL_DUTY_MS,
         'runaway_duty': round(RUNAWAY_DUTY * EFFORT_SCALE),
         'runaway_speed_counts_s': round(RUNAWAY_SPEED_RAD_S * counts_per_rad),
         'runaway_time_ms': RUNAWAY_TIME_MS,

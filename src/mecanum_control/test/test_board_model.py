@@ -250,7 +250,7 @@ def test_command_keeps_other_faults():
     board.core.faults = int(other | FaultFlags.COMMAND_TIMEOUT)
     board.command([0.0] * 4, command_timeout_ms=100, seq=1)
     assert board.faults == other
-    board.clear_faults(FaultFlags.ESTOP_INPUT)   # a level bit: ignored
+    board.clear_faults(FaultFlags.LOW_BATTERY)   # a level bit: ignored
     assert board.faults == other
     board.clear_faults(other)
     assert board.faults == FaultFlags(0)
