@@ -9,6 +9,7 @@ import math
 import os
 from pathlib import Path
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -35,6 +36,18 @@ RUN_MARKER = 'MECANUM_TEST_RUN'
 def processes_with_marker(marker: str) -> list:
     """Return the PIDs of live processes whose environment has RUN_MARKER=marker."""
     return processes_with_variable(RUN_MARKER, marker)
+
+
+#: The real `ros2` command that make setup builds (None where it found no upstream sources).
+ROS2 = shutil.which('ros2')
+
+
+@pytest.fixture
+def needs_ros2():
+    """Skip, saying why, where make setup could not build the ros2 command."""
+    if ROS2 is None:
+        pytest.skip('no ros2 command: make setup found no upstream ros2cli sources (see '
+                    'tools/ros2_upstream.py)')
 
 
 def interrupt_group(process: subprocess.Popen, timeout: float = 15.0) -> int:

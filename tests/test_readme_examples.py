@@ -13,7 +13,6 @@ after `source tools/env.sh`), in a leased ROS domain.
 from pathlib import Path
 import re
 import shlex
-import shutil
 import subprocess
 import time
 
@@ -22,19 +21,10 @@ from std_msgs.msg import String
 from tests.conftest import (
     SEED_POSITION as POSITION, SEED_SHORTFALL_M, settled_seed_position, TerminalProcess)
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.usefixtures('needs_ros2')]
 
 REPO = Path(__file__).resolve().parents[1]
-ROS2 = shutil.which('ros2')
 SHELL_LINE = re.compile(r'^(?P<command>.+?)\s+# shell (?P<shell>\d+)\b')
-
-
-@pytest.fixture(autouse=True)
-def needs_ros2():
-    """Skip, saying why, where make setup could not build the ros2 command."""
-    if ROS2 is None:
-        pytest.skip('no ros2 command: make setup found no upstream ros2cli sources (see '
-                    'tools/ros2_upstream.py)')
 
 
 def shell_commands(readme: Path, heading: str) -> dict:

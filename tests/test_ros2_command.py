@@ -14,26 +14,16 @@ nothing yet is run again, as a user would.
 import os
 from pathlib import Path
 import re
-import shutil
 import signal
 import subprocess
 import time
 
 import pytest
-from tests.conftest import RUN_MARKER
+from tests.conftest import ROS2, RUN_MARKER
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.usefixtures('needs_ros2')]
 
 REPO = Path(__file__).resolve().parents[1]
-ROS2 = shutil.which('ros2')
-
-
-@pytest.fixture(autouse=True)
-def needs_ros2():
-    """Skip, saying why, where make setup could not build the ros2 command."""
-    if ROS2 is None:
-        pytest.skip('no ros2 command: make setup found no upstream ros2cli sources (see '
-                    'tools/ros2_upstream.py)')
 
 
 def ros2(env, *args, timeout=60.0) -> str:

@@ -12,25 +12,15 @@ tests/test_runtime_parameter_nodes.py.
 """
 
 import re
-import shutil
 import subprocess
 import time
 
 from geometry_msgs.msg import Twist
 import pytest
 from std_msgs.msg import String
+from tests.conftest import ROS2
 
-pytestmark = pytest.mark.integration
-
-ROS2 = shutil.which('ros2')
-
-
-@pytest.fixture(autouse=True)
-def needs_ros2():
-    """Skip, saying why, where make setup could not build the ros2 command."""
-    if ROS2 is None:
-        pytest.skip('no ros2 command: make setup found no upstream ros2cli sources (see '
-                    'tools/ros2_upstream.py)')
+pytestmark = [pytest.mark.integration, pytest.mark.usefixtures('needs_ros2')]
 
 
 def ros2_param(env, *args, timeout: float = 60.0) -> subprocess.CompletedProcess:

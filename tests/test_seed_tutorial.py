@@ -16,20 +16,19 @@ simulation too. The seed's topics: control_command (std_msgs/String) -> robot_co
 """
 
 from pathlib import Path
-import shutil
 import subprocess
 import time
 
 import pytest
 from std_msgs.msg import String
 from tests.conftest import (
-    SEED_POSITION as POSITION, SEED_SHORTFALL_M, settled_seed_position, TerminalProcess)
+    ROS2, SEED_POSITION as POSITION, SEED_SHORTFALL_M, settled_seed_position,
+    TerminalProcess)
 
 pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[1]
 #: The README's `ros2 run`; the pip setup's own launcher where `ros2` could not be built.
-ROS2 = shutil.which('ros2')
 RUN_COMMAND = [ROS2, 'run'] if ROS2 else [str(REPO / 'mecanum'), 'run']
 
 
