@@ -31,7 +31,7 @@ REPO = Path(__file__).resolve().parents[1]
 class ScriptedBoard:
     """The board side of a pty: records every frame the host sends, sends what it is told."""
 
-    def __init__(self, link: Path, plugged: bool = True):
+    def __init__(self, link: Path, plugged: bool = True, talking: bool = True):
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave)
         self.link = link
@@ -42,7 +42,7 @@ class ScriptedBoard:
         self._decoder = proto.FrameDecoder()
         self._seq = {}
         self._running = True
-        self.talking = True
+        self.talking = talking
         threading.Thread(target=self._read, daemon=True).start()
         threading.Thread(target=self._heartbeat, daemon=True).start()
 
@@ -180,6 +180,31 @@ def test_silent_board_gets_a_zero_and_is_retried_without_log_spam(link_setup):
     stop_feeding.set()
     board.talking = True
     host.wait_for('The board at .* answers')
+
+
+def test_reconnecting_to_a_silent_board_never_blames_another_program(ros_env, tmp_path):
+    """
+    Each link loss lets go of the port before the next try.
+
+    A real board sits 2 s in its REPL window after a reset, silent. The reader
+    thread's select held the closed port's file, and so its exclusive lock, until it
+    returned (up to 50 ms): a reconnect meanwhile was refused with 'another program
+    holds it (pid <hardware_interface itself>)'. Reconnecting every 10 ms makes that
+    window certain to be hit without the fix.
+    """
+    link = tmp_path / 'ttyESP32'
+    board = ScriptedBoard(link, talking=False)
+    host = HostProcess(ros_env, link, 'link_timeout_s:=0.1', 'reconnect_period_s:=0.01')
+    try:
+        host.wait_for('does not answer')
+        # Each connection writes a zero command when it opens and one when it is lost.
+        wait_until(lambda: len(board.frames(proto.MotorEfforts)) >= 24, timeout=20.0)
+        assert host.count('another program holds it') == 0, host.output()
+        board.talking = True
+        host.wait_for('The board at .* answers')
+    finally:
+        host.stop()
+        board.close()
 
 
 def test_efforts_received_before_a_connection_are_never_sent_on_it(ros_env, test_node,

@@ -74,6 +74,9 @@ ZERO_EFFORTS = (0.0, 0.0, 0.0, 0.0)
 CLOCK_WAIT_REPORT_S = 2.0
 #: Longest wait of the serial reader for data before it looks at its stop flag again (s).
 READ_WAIT_S = 0.05
+#: Link seconds a lock held by this very process is taken for the last connection still
+#: closing (retried quietly) before it is reported like any other holder's.
+OWN_LOCK_GRACE_S = 1.0
 #: Command periods without motor_efforts after which the keep-alive repeats the command
 #: (so the longest gap between two commands is STREAM_GAP_PERIODS + 1 periods).
 STREAM_GAP_PERIODS = 1.5
@@ -125,6 +128,14 @@ class HardwareInterface(Node):
         self._lock = threading.Lock()  # state shared with the serial reader thread
         self._io_lock = threading.Lock()  # one writer at a time; no close during a write
         self._read_lock = threading.Lock()  # one reader of the line at a time (catch_up)
+        # Wakes the reader thread out of its select when the port is closed: a select
+        # holds the closed port's file (and so its exclusive lock) until it returns, and
+        # a reconnect meanwhile was refused as 'another program holds it' (this one).
+        self._wake_read, self._wake_write = os.pipe()
+        os.set_blocking(self._wake_write, False)
+        self._selecting = threading.Condition()   # the port the reader selects on, if any
+        self._selected_port = None
+        self._own_lock_since = {}   # 'at': link time this process's own lock was first met
         self._serial: Optional[serial.Serial] = None
         self._connected_at = 0.0
         self._last_frame_at = 0.0
@@ -318,6 +329,15 @@ class HardwareInterface(Node):
             # absent port (an error, once per holder).
             port = open_exclusive(self.port, self.baud_rate, timeout=0.05, write_timeout=0)
         except (serial.SerialException, OSError, ValueError) as error:
+            own = isinstance(error, PortInUse) and f'pid {os.getpid()}:' in str(error)
+            if own and self._now() - self._own_lock_since.setdefault(
+                    'at', self._now()) < OWN_LOCK_GRACE_S:
+                # This process's last connection, still held by the reader's select
+                # (woken): closed in a moment; the timer retries. Not another program
+                # (past the grace: another node of this process holds it; said below).
+                self.get_logger().debug(f'{self.port}: the last connection is still '
+                                        'closing; retrying')
+                return
             if self._disconnect_reason != str(error):
                 self._disconnect_reason = str(error)
                 log = (self.get_logger().error if isinstance(error, PortInUse)
@@ -333,6 +353,7 @@ class HardwareInterface(Node):
             port.close()
             self._disconnect_reason = str(error)
             return
+        self._own_lock_since.clear()
         with self._lock:
             self._add_totals()  # and a fresh decoder and trackers for this connection
             self._serial = port
@@ -383,6 +404,7 @@ class HardwareInterface(Node):
                 port.close()
             except (serial.SerialException, OSError, TypeError):
                 pass
+        self._wake_reader(port)
         if answered:
             self._quiet = False
             self.get_logger().error(
@@ -395,6 +417,22 @@ class HardwareInterface(Node):
                 f'{self.reconnect_period_s} s without repeating this message')
         self.publish_diagnostics()
 
+    def _wake_reader(self, port=None) -> None:
+        """
+        Wake the reader thread from a select (see __init__).
+
+        Given the port just closed, wait (up to READ_WAIT_S) until the reader's select on
+        it has returned, so that its lock is gone when this returns.
+        """
+        try:
+            os.write(self._wake_write, b'w')
+        except (BlockingIOError, OSError):
+            pass   # already woken (the pipe holds unread bytes) or closed
+        if port is not None and threading.current_thread() is not self._reader:
+            with self._selecting:
+                self._selecting.wait_for(lambda: self._selected_port is not port,
+                                         timeout=READ_WAIT_S)
+
     # Board reports -------------------------------------------------------------------
     def _read_loop(self) -> None:
         while not self._stop.is_set():
@@ -402,12 +440,21 @@ class HardwareInterface(Node):
             if port is None:
                 time.sleep(0.02)
                 continue
+            with self._selecting:
+                self._selected_port = port
             try:
-                readable, _, _ = select.select([port.fd], [], [], READ_WAIT_S)
+                readable, _, _ = select.select([port.fd, self._wake_read], [], [],
+                                               READ_WAIT_S)
             except (OSError, TypeError, ValueError) as error:
                 self._lose_link(port, f'read failed: {error}')
                 continue
-            if readable:
+            finally:
+                with self._selecting:
+                    self._selected_port = None
+                    self._selecting.notify_all()
+            if self._wake_read in readable:
+                os.read(self._wake_read, 64)
+            elif readable:
                 self._read_once(port)
 
     def _read_once(self, port) -> bool:
@@ -570,12 +617,18 @@ class HardwareInterface(Node):
             self._efforts_at = -math.inf
         self._send_efforts()
         self._stop.set()
+        self._wake_reader()
         self._reader.join(timeout=1.0)
         with self._lock:
             port, self._serial = self._serial, None
         if port is not None:
             with self._io_lock:
                 port.close()
+        for fd in (self._wake_read, self._wake_write):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 def read_available(fd: int, timeout_s: float) -> bytes:
