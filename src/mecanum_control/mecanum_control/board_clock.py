@@ -16,7 +16,9 @@ smoothly when it moves. The price is
 the median transport delay (about 1 ms on a serial link), which the stamps include.
 A board whose clock counts the host's own time (the simulated board counts simulated
 time, ``same_clock``) has an offset of a whole number of u32 wraps: the median is
-rounded to it, so stamps carry no transport delay. They may lie up to one /clock step
+rounded to it (when within SAME_CLOCK_TOLERANCE_S of it: the flashed firmware in the
+simulator counts from its own boot, 2 s in, so its offset is the median's like a real
+board's), so stamps carry no transport delay. They may lie up to one /clock step
 after the host's now (a node on simulated time hears /clock in steps, and the board's
 samples of a step can arrive before its /clock): clamping them to now gave two IMU
 samples 10 ms apart the same stamp whenever the serial data won that race.
@@ -31,6 +33,10 @@ import math
 from typing import Deque, List, Optional
 
 U32 = 1 << 32
+#: same_clock: a median offset this close (s) to a whole number of u32 wraps is rounded
+#: to it (a board counting the host's time, received up to a few /clock steps late);
+#: further off, the board counts its own time after all and the median stands.
+SAME_CLOCK_TOLERANCE_S = 0.5
 
 
 class BoardClockSync:
@@ -62,7 +68,9 @@ class BoardClockSync:
                                                                + values[middle])
         if self.same_clock:
             wrap_s = U32 * 1e-6
-            return round(median / wrap_s) * wrap_s
+            wraps_s = round(median / wrap_s) * wrap_s
+            if abs(median - wraps_s) <= SAME_CLOCK_TOLERANCE_S:
+                return wraps_s
         return median
 
     def stamp(self, board_time_us: int, host_now_s: float) -> float:

@@ -94,3 +94,13 @@ def test_a_board_on_the_host_clock_gets_no_transport_delay():
             2 * wrap_s + board_s, abs=1e-9)
     median = BoardClockSync()
     assert median.stamp(10_000_000, 10.05) == pytest.approx(10.05)  # the delay stays in
+
+
+def test_a_board_counting_from_its_own_boot_keeps_the_median_with_same_clock():
+    """The flashed firmware in the simulator boots 2 s in: its clock is not the host's."""
+    sync = BoardClockSync(same_clock=True)
+    # Board time 0 at host 2.0 s (the REPL window), received 1-5 ms late.
+    for i, late in enumerate((0.001, 0.005, 0.003)):
+        board_s = 0.01 * i
+        stamp = sync.stamp(int(round(board_s * 1e6)), 2.0 + board_s + late)
+    assert stamp == pytest.approx(2.0 + 0.02 + 0.003, abs=1e-9)   # the median offset
