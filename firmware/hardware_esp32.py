@@ -28,6 +28,8 @@ import pin_map
 #: 100 Hz) and serial input does not wake it, so the wait is poll(0) and sleep_us
 #: slices: a frame is taken within about this long of its arrival.
 WAIT_SLICE_US = 200
+#: At most this many bytes (reads) of input left from before the start are dropped.
+STALE_INPUT_MAX_BYTES = 4096
 
 
 class Esp32Hardware:
@@ -95,7 +97,24 @@ class Esp32Hardware:
             self._stdin = sys.stdin.buffer
             self._stdout = sys.stdout.buffer
             self._poll.register(sys.stdin, select.POLLIN)
+        self._drop_stale_input()
         self._watchdog = WDT(timeout=config.WATCHDOG_MS)
+
+    def _drop_stale_input(self):
+        """
+        Drop what the host sent before the loop runs (during the REPL window, a reset).
+
+        Those commands are of unknown age: applied now they would drive the wheels for a
+        command timeout on a command the host may no longer mean. The host streams its
+        command, so the next one comes within a period.
+        """
+        for _ in range(STALE_INPUT_MAX_BYTES):
+            if not self._poll.poll(0):
+                return
+            if self._uart is not None:
+                self._uart.read()
+            else:
+                self._stdin.read(1)
 
     @staticmethod
     def _make_motor(wiring, freq_hz):

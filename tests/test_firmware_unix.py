@@ -2,7 +2,7 @@
 The firmware as flashed (main.py, unchanged) under MicroPython's unix port, on a pty.
 
 The host's real hardware_interface is on the other end of the pty. The board is
-firmware/test/unix_firmware.py's: exactly the files the flash script copies, a stand-in
+firmware/unix_port/unix_firmware.py's: exactly the files the flash script copies, a stand-in
 machine module with the ESP32 port's signatures (wheels that turn with the motor pins
 and count through the encoders' inverts, an MPU-6050 at rest, an e-stop input the test
 sets), and the harness as the hardware watchdog. The host drives the wheels and reads
@@ -33,7 +33,7 @@ from tests.conftest import Recorder
 from tests.test_hardware_interface_link import HostProcess
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / 'firmware' / 'test'))
+sys.path.insert(0, str(REPO / 'firmware' / 'unix_port'))
 from unix_firmware import micropython_command, UnixFirmwareBoard  # noqa: E402
 
 # alone: the watchdog's reset window, the command timeout and the latency are wall-clock
@@ -244,7 +244,7 @@ def _drain(port):
 
 def test_control_stack_drives_on_the_flashed_firmware(start_system, test_node, tmp_path):
     """
-    emulated_control with emulator_args:=--firmware: cmd_vel_safe moves the odometry.
+    emulated_control with board:=firmware: cmd_vel_safe moves the odometry.
 
     The whole control stack (motor_controller, velocity_controller, hardware_interface,
     encoder_reader) on main.py as flashed: forward 0.2 m/s gives odom forward near it.
@@ -254,7 +254,7 @@ def test_control_stack_drives_on_the_flashed_firmware(start_system, test_node, t
     port = tmp_path / 'ttyESP32'
     system = start_system(
         'mecanum_control', 'emulated_control.launch.yaml', f'port:={port}',
-        'emulator_args:=--firmware', f'estop_latch_file:={tmp_path / "estop_latched"}')
+        'board:=firmware', f'estop_latch_file:={tmp_path / "estop_latched"}')
     system.wait_for_line(r'\[hardware_interface\].*Connected to the board', timeout=30)
     system.wait_for_line(r'\[velocity_controller\].*control active', timeout=30)
     odom = test_node.record(Odometry, 'odom')

@@ -89,6 +89,13 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path, marked_env):
     waypoints = summary(tmp_path, 'nav2_waypoints')
     assert [(step['kind'], step['outcome']) for step in waypoints['steps']] == [
         ('waypoints', 'reached')]
+    # The whole robot on the firmware as flashed (main.py under MicroPython, lockstep).
+    firmware = summary(tmp_path, 'flashed_firmware')
+    assert firmware['board'] == 'firmware' and firmware['verdict'] == 'pass'
+    assert [step['outcome'] for step in firmware['steps']] == ['reached', 'done', 'done']
+    assert 'firmware/main.py as flashed' in (tmp_path / 'flashed_firmware'
+                                             / 'system.log').read_text()
+    assert summary(tmp_path, 'text_commands')['board'] == 'core'
     commands = summary(tmp_path, 'text_commands')
     assert [step['outcome'] for step in commands['steps']] == ['done'] * 7
     check_the_command_chain_scenarios(tmp_path)

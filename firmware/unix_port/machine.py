@@ -20,9 +20,17 @@ microseconds, is the ESP32 port's, absent from the generic stubs). What it simul
   drive changed: the level the pins make, positive rolling the robot forward through
   the motor's invert, 0 brake or coast),
   ``WDT <timeout_ms>`` (the watchdog started).
+
+In co-simulation with the physics simulator (the clock of ``time.py`` staged beside
+main.py: ``time.cosim``) the wheels are the simulated robot's instead: the drives go
+to the simulator at the end of each step, the encoders count what it sends, the
+MPU-6050 answers with the simulated body's samples (quantised to its registers:
++-4 g, +-500 deg/s), or not at all while the simulator's IMU is silent, and the
+watchdog's feeds go to the simulator, which resets the board. No events on stderr.
 """
 
 import os
+import struct
 import sys
 import time
 
@@ -36,6 +44,10 @@ _PWM_FULL = 65535
 
 def _event(text):
     sys.stderr.write(text + '\n')
+
+
+#: The co-simulation's link (time.py staged beside main.py), or None.
+_COSIM = getattr(time, 'cosim', None)
 
 
 class _Wheels:
@@ -61,6 +73,17 @@ class _Wheels:
             self.position[index] += (sign * self.drive[index] / _PWM_FULL
                                      * FULL_SPEED_COUNTS_S * seconds)
 
+    def count(self, index):
+        """Return a wheel's count, forward positive."""
+        self.advance()
+        return int(self.position[index])
+
+    def changed(self, index, drive, forward_drive):
+        """Take a wheel's new drive (as the pins make it, and rolling forward)."""
+        self.advance()
+        self.drive[index] = drive
+        _event('M %d %d' % (index, forward_drive))
+
     def pins_changed(self, pin_number):
         """Recompute the drive of the motor this pin belongs to (if any)."""
         index = self.motor_of_pin.get(pin_number)
@@ -81,14 +104,29 @@ class _Wheels:
             second = _PWMS[wiring['in2']].level if wiring['in2'] in _PWMS else 0
             drive = first - second if not (first and second) else 0
         if drive != self.drive[index]:
-            self.advance()
-            self.drive[index] = drive
-            _event('M %d %d' % (index, -drive if wiring['invert'] else drive))
+            self.changed(index, drive, -drive if wiring['invert'] else drive)
+
+
+class _SimulatedWheels(_Wheels):
+    """The simulated robot's wheels (co-simulation): drives out, counts in."""
+
+    def __init__(self):
+        super().__init__()
+        self.forward = _COSIM.drives   # the list the link sends at each step's end
+
+    def count(self, index):
+        """Return the simulator's count of a wheel, forward positive."""
+        return _COSIM.counts[index]
+
+    def changed(self, index, drive, forward_drive):
+        """Take a wheel's new drive: the simulator gets it at the step's end."""
+        self.drive[index] = drive
+        self.forward[index] = forward_drive
 
 
 _PINS = {}
 _PWMS = {}
-_WHEELS = _Wheels()
+_WHEELS = _Wheels() if _COSIM is None else _SimulatedWheels()
 _inputs = {}
 _inputs_at = [None]
 
@@ -179,12 +217,24 @@ class Encoder:
 
     def value(self, value=None):
         """Return the count (as wired: an inverted encoder counts down going forward)."""
-        _WHEELS.advance()
-        return self.sign * int(_WHEELS.position[self.index])
+        return self.sign * _WHEELS.count(self.index)
+
+
+#: MPU-6050 register units at the driver's ranges: LSB per m/s^2 (+-4 g), per rad/s
+#: (+-500 deg/s).
+_ACCEL_LSB = 8192 / 9.80665
+_GYRO_LSB = 65.5 * 57.29577951308232
+_ENODEV = 19
+
+
+def _register(value, lsb_per_unit):
+    """Return value in a 16-bit register's units, saturated."""
+    raw = int(round(value * lsb_per_unit))
+    return -32768 if raw < -32768 else 32767 if raw > 32767 else raw
 
 
 class I2C:
-    """An I2C bus with an MPU-6050 lying still on it (1 g on z)."""
+    """An I2C bus with an MPU-6050 on it: lying still (1 g on z), or the simulator's."""
 
     def __init__(self, bus, *, scl=None, sda=None, freq=400000, timeout=50000):
         self.timeout = timeout
@@ -194,12 +244,22 @@ class I2C:
         """Accept a register write."""
 
     def readfrom_mem(self, addr, memaddr, nbytes, *, addrsize=8):
-        """Answer WHO_AM_I as an MPU-6050."""
+        """Answer WHO_AM_I as an MPU-6050 (not while the simulator's IMU is silent)."""
+        if _COSIM is not None and _COSIM.imu() is None:
+            raise OSError(_ENODEV)
         return bytes((0x68,))
 
     def readfrom_mem_into(self, addr, memaddr, buf, *, addrsize=8):
-        """Return the sample."""
-        buf[:] = self._sample
+        """Return the sample (from ACCEL_XOUT_H: accel, temperature, gyro; big-endian)."""
+        if _COSIM is None:
+            buf[:] = self._sample
+            return
+        sample = _COSIM.imu()
+        if sample is None:
+            raise OSError(_ENODEV)
+        words = [_register(value, _ACCEL_LSB) for value in sample[:3]] + [0] + [
+            _register(value, _GYRO_LSB) for value in sample[3:]]
+        buf[:] = struct.pack('>7h', *words)
 
 
 class ADC:
@@ -229,10 +289,17 @@ class WDT:
     def __init__(self, *, id=0, timeout=5000):   # noqa: A002 (the ESP32's keyword)
         self.timeout = timeout
         self._reported = None
+        if _COSIM is not None:
+            _COSIM.wdt_ms = timeout
+            _COSIM.fed_us = _COSIM.now_us
+            return
         _event('WDT %d' % timeout)
 
     def feed(self):
-        """Feed it (reported at most every WDT_REPORT_MS)."""
+        """Feed it (reported at most every WDT_REPORT_MS, or to the simulator)."""
+        if _COSIM is not None:
+            _COSIM.fed_us = _COSIM.now_us
+            return
         now = time.ticks_ms()
         if self._reported is None or time.ticks_diff(now, self._reported) >= WDT_REPORT_MS:
             self._reported = now
