@@ -13,13 +13,23 @@ flock, which hardware_interface takes too): while the robot's stack holds the bo
 board_check is refused with a message naming the program holding it, and the other way
 round, so two programs never send efforts to the motors at once.
 
+``--calibrate`` (robot on a stand, wheels free; at a terminal) measures each wheel: you
+turn it forward by hand exactly ``--turns`` turns (10) and press Enter, then it spins
+each at ``--duty`` for ``--spin-seconds``. From the counts it proposes the robot
+config's ``gear_ratio`` (counts per wheel turn over ``encoder_counts_per_motor_rev``)
+and which motor and encoder ``invert`` to flip in firmware/board_config.py
+(mecanum_control.board_calibration), shows both files' diffs and writes them when you
+say yes (``--yes``: without asking); then reflash (``make firmware-flash``).
+
 Exit code: 0 if the board answered in protocol v1 with no fault but those it was told
-about, and the spun wheel counted forward; 1 otherwise; 2 if nothing answered or the port
-could not be opened (absent, or held by another program).
+about, and the spun wheel counted forward (with --calibrate: the calibration was
+measured, and written if asked); 1 otherwise; 2 if nothing answered or the port could
+not be opened (absent, or held by another program).
 
 Example::
 
     ros2 run mecanum_control board_check --port /dev/ttyUSB0 --spin FL
+    ros2 run mecanum_control board_check --port /dev/ttyUSB0 --calibrate
 """
 
 import argparse
@@ -28,6 +38,7 @@ import os
 from pathlib import Path
 import select
 import sys
+import threading
 import time
 from typing import List, Optional, Tuple
 
@@ -205,8 +216,7 @@ def spin(session: BoardSession, wheel: str, duty: float, seconds: float,
     after = session.latest(proto.EncoderTicks)
     if before is None or after is None:
         return [f'spin {wheel}: no ENCODER_TICKS'], False
-    moved = [((b - a + (1 << 31)) % (1 << 32)) - (1 << 31)
-             for a, b in zip(before.ticks, after.ticks)]
+    moved = counts_moved(before, after)
     turns = moved[index] / config.counts_per_wheel_rev
     others = ', '.join(f'{w} {m}' for w, m in zip(WHEELS, moved) if w != wheel)
     line = (f'spin {wheel} at duty {duty:+.2f} for {seconds:.1f} s: {moved[index]:+d} counts '
@@ -236,7 +246,24 @@ def parse_args(argv: List[str]) -> argparse.Namespace:
     parser.add_argument('--spin', choices=WHEELS, help='turn this wheel afterwards')
     parser.add_argument('--duty', type=float, default=0.2, help='duty of the spin, -1..1')
     parser.add_argument('--spin-seconds', type=float, default=2.0)
+    parser.add_argument('--calibrate', action='store_true',
+                        help="measure counts per wheel turn and each wheel's directions "
+                        '(you turn each wheel by hand), then update motor_params.yaml and '
+                        'firmware/board_config.py, showing the diff first')
+    parser.add_argument('--turns', type=float, default=10.0,
+                        help='wheel turns you make by hand per wheel (--calibrate)')
+    parser.add_argument('--board-config', type=Path, default=None,
+                        help='firmware/board_config.py to update (default: the source '
+                        "tree's)")
+    parser.add_argument('--yes', action='store_true',
+                        help='write the calibration without asking')
     args = parser.parse_args(argv)
+    if args.calibrate and ask_user is input and not sys.stdin.isatty():
+        parser.error('--calibrate asks you to turn each wheel by hand: run it at a terminal')
+    if args.calibrate and args.spin:
+        parser.error('--calibrate spins every wheel itself: leave out --spin')
+    if args.calibrate and (not args.turns > 0 or args.duty < 0):
+        parser.error('--calibrate needs --turns > 0 and a positive --duty')
     if not -1.0 <= args.duty <= 1.0 or args.duty == 0.0:
         parser.error('--duty must be in [-1, 1] and not 0')
     if not args.seconds > 0 or not args.spin_seconds > 0:
@@ -264,7 +291,10 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'board_check: cannot open {args.port}: {error}', file=sys.stderr)
         return 2
     with line:
-        return check(BoardSession(line.fileno(), config.board_command_timeout_ms), args, config)
+        session = BoardSession(line.fileno(), config.board_command_timeout_ms)
+        if args.calibrate:
+            return calibrate_board(session, args, config)
+        return check(session, args, config)
 
 
 def check(session: BoardSession, args: argparse.Namespace, config: RobotConfig) -> int:
@@ -289,6 +319,115 @@ def check(session: BoardSession, args: argparse.Namespace, config: RobotConfig) 
             healthy = False
     print('board_check: ' + ('OK' if healthy else 'PROBLEMS (see above)'))
     return 0 if healthy else 1
+
+
+#: How --calibrate asks the person at the robot (a test replaces it).
+ask_user = input
+
+
+def ask_while_listening(session: BoardSession, prompt: str) -> str:
+    """Ask the user (blocking) while a thread keeps taking the board's frames."""
+    stop = threading.Event()
+
+    def listen():
+        while not stop.is_set():
+            session.receive(0.05)
+    listener = threading.Thread(target=listen, daemon=True)
+    listener.start()
+    try:
+        return ask_user(prompt)
+    finally:
+        stop.set()
+        listener.join()
+
+
+def counts_moved(before: proto.EncoderTicks, after: proto.EncoderTicks) -> List[int]:
+    """Return each wheel's counts from one report to another (int32 wrap taken)."""
+    return [((b - a + (1 << 31)) % (1 << 32)) - (1 << 31)
+            for a, b in zip(before.ticks, after.ticks)]
+
+
+def fresh_ticks(session: BoardSession) -> Optional[proto.EncoderTicks]:
+    """Return the board's latest ENCODER_TICKS after 0.2 s more of listening."""
+    session.drive((0.0, 0.0, 0.0, 0.0), 0.2)
+    return session.latest(proto.EncoderTicks)
+
+
+def calibrate_board(session: BoardSession, args: argparse.Namespace,
+                    config: RobotConfig) -> int:
+    """Measure the wheels, propose the calibration, show the diffs, write when told to."""
+    from mecanum_control.board_calibration import (
+        board_config_text, calibrate, CalibrationError, motor_params_text, unified_diff)
+    print(f'board_check --calibrate: {args.port}. Put the robot on a stand, wheels off '
+          'the ground. Mark each wheel (tape on the tyre) to count its turns.')
+    session.send(proto.ClearFaults(proto.FaultFlags(0xFFFF)))
+    if fresh_ticks(session) is None:
+        print('board_check: no ENCODER_TICKS from the board', file=sys.stderr)
+        return 2
+    hand = []
+    for index, wheel in enumerate(WHEELS):
+        before = fresh_ticks(session)
+        ask_while_listening(session, f'  {wheel}: turn it FORWARD (the way that rolls the '
+                            f'robot forward) by hand exactly {args.turns:g} turns, then '
+                            'press Enter ')
+        hand.append(counts_moved(before, fresh_ticks(session))[index])
+        print(f'  {wheel}: {hand[-1]:+d} counts')
+    spins = []
+    for index, wheel in enumerate(WHEELS):
+        # Turning by hand (or a reversed motor) may trip the runaway check: cleared.
+        session.send(proto.ClearFaults(proto.FaultFlags(0xFFFF)))
+        before = fresh_ticks(session)
+        efforts = [0.0] * 4
+        efforts[index] = args.duty
+        session.drive(tuple(efforts), args.spin_seconds)
+        spins.append(counts_moved(before, fresh_ticks(session))[index])
+        print(f'  {wheel}: spun at duty {args.duty:+.2f} for {args.spin_seconds:g} s: '
+              f'{spins[-1]:+d} counts')
+    session.send(proto.ClearFaults(proto.FaultFlags(0xFFFF)))
+    try:
+        result = calibrate(hand, args.turns, spins, args.duty,
+                           config.encoder_counts_per_motor_rev)
+    except CalibrationError as error:
+        print(f'board_check: no calibration: {error}', file=sys.stderr)
+        return 1
+    for line in result.lines():
+        print('  ' + line)
+    params_path = Path(os.path.realpath(args.config or default_config_path()))
+    if args.board_config is not None:
+        wiring_path = args.board_config
+    else:
+        from mecanum_control.firmware_tree import firmware_dir, FirmwareUnavailable
+        try:
+            wiring_path = firmware_dir() / 'board_config.py'
+        except FirmwareUnavailable as error:
+            print(f'board_check: {error}; give --board-config', file=sys.stderr)
+            return 1
+    changes = []
+    try:
+        for path, edit in ((params_path, lambda text: motor_params_text(
+                text, result.gear_ratio)), (wiring_path, lambda text: board_config_text(
+                    text, result.flip_motor, result.flip_encoder))):
+            before = path.read_text()
+            after = edit(before)
+            if after != before:
+                changes.append((path, after))
+                print(unified_diff(before, after, str(path)), end='')
+    except (OSError, CalibrationError) as error:
+        print(f'board_check: {error}', file=sys.stderr)
+        return 1
+    if not changes:
+        print('board_check: the files already say this: nothing to change')
+        return 0
+    if not args.yes and ask_user('Write these changes? [y/N] ').strip().lower() not in (
+            'y', 'yes'):
+        print('board_check: nothing written')
+        return 0
+    for path, text in changes:
+        path.write_text(text)
+        print(f'board_check: wrote {path}')
+    print('board_check: reflash the board (make firmware-flash PORT=...) for the firmware '
+          'to use them, and rebuild if the robot config is installed (colcon build)')
+    return 0
 
 
 if __name__ == '__main__':
