@@ -387,7 +387,23 @@ class SimulatedHardware:
         return False
 
 
-class SimulatedBoard:
+class LineBoard:
+    """A board whose hardware layer (``hw``, a SimulatedHardware) has its serial line."""
+
+    hw: SimulatedHardware
+
+    @property
+    def line(self) -> Optional[SerialLine]:
+        """Return the serial port's line, None when the board is connected to nothing."""
+        return self.hw.line
+
+    def attach(self, line: SerialLine) -> None:
+        """Connect the board's serial port to a line and plug it in."""
+        self.hw.line = line
+        line.plug()
+
+
+class SimulatedBoard(LineBoard):
     """
     The firmware core on simulated hardware, with the host's view of its state.
 
@@ -400,16 +416,6 @@ class SimulatedBoard:
         self.plant = plant
         self.hw = SimulatedHardware(plant, line)
         self.core = BoardCore(self.hw, params)
-
-    @property
-    def line(self) -> Optional[SerialLine]:
-        """Return the serial port's line, None when the board is connected to nothing."""
-        return self.hw.line
-
-    def attach(self, line: SerialLine) -> None:
-        """Connect the board's serial port to a line and plug it in."""
-        self.hw.line = line
-        line.plug()
 
     def poll(self) -> None:
         """Run one firmware loop iteration; reports go out only on a plugged line."""

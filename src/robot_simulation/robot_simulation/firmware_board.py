@@ -39,7 +39,7 @@ import time
 from typing import List, Optional, Sequence
 
 from mecanum_control import esp32_wire as wire
-from mecanum_control.board_sim import SerialLine, SimulatedHardware
+from mecanum_control.board_sim import LineBoard, SerialLine, SimulatedHardware
 from mecanum_control.esp32_protocol import FaultFlags
 from mecanum_control.firmware_tree import unix_port
 
@@ -56,7 +56,7 @@ REPORTING_WITHIN_US = 100_000
 MAX_PENDING_BYTES = 4096
 
 
-class FirmwareBoard:
+class FirmwareBoard(LineBoard):
     """main.py under the unix port, stepped with the physics (a SimulatedBoard's interface)."""
 
     def __init__(self, plant, robot, line: Optional[SerialLine] = None,
@@ -139,17 +139,7 @@ class FirmwareBoard:
         self._halt()
         shutil.rmtree(self._folder, ignore_errors=True)
 
-    # --- the serial line ---------------------------------------------------------------
-    @property
-    def line(self) -> Optional[SerialLine]:
-        """Return the serial port's line, None when the board is connected to nothing."""
-        return self.hw.line
-
-    def attach(self, line: SerialLine) -> None:
-        """Connect the board's serial port to a line and plug it in."""
-        self.hw.line = line
-        line.plug()
-
+    # --- the serial line (line, attach: LineBoard's) -----------------------------------
     def receive(self) -> None:
         """Take the host's bytes now (for the next step); count its MOTOR_EFFORTS (if up)."""
         data = self.hw.read()
@@ -198,7 +188,8 @@ class FirmwareBoard:
         try:
             os.write(self._to_board, b'S %d %d %d %d %d\n' % ((now_us,) + tuple(counts)))
             drives = self._run_step()
-        except BrokenPipeError:
+        except BrokenPipeError:   # it ended since the last step
+            self._firmware_ended()
             drives = None
         if drives is None:
             return

@@ -168,6 +168,7 @@ def test_ended_firmware_is_reset_by_its_watchdog_and_boots_again(simulation):
     board = sim.board
     assert board.efforts == pytest.approx([0.3] * 4, abs=1e-4)
     board.process.send_signal(signal.SIGKILL)
+    board.process.wait()   # dead before the next step (no race with the kill's delivery)
     run(sim, 0.1, [0.3] * 4)
     assert board.efforts == [0.0] * 4 and not board.reporting
     assert 'firmware ended' in board.events[-1][1]
