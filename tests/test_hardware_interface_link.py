@@ -18,11 +18,12 @@ import tty
 
 from builtin_interfaces.msg import Time
 from mecanum_control import esp32_protocol as proto
+from mecanum_interfaces.msg import WheelTicks
 import pytest
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
-from tests.conftest import OutputProcess
+from tests.conftest import OutputProcess, Recorder
 
 pytestmark = pytest.mark.integration
 REPO = Path(__file__).resolve().parents[1]
@@ -103,7 +104,8 @@ class HostProcess(OutputProcess):
         super().__init__(
             ['./mecanum', 'run', 'mecanum_control', 'hardware_interface', '--ros-args',
              '-p', f'port:={link}', '-p', 'link_timeout_s:=0.4', '-p',
-             'reconnect_period_s:=0.3', *extra], env, cwd=REPO)
+             'first_frame_timeout_s:=0.4', '-p', 'reconnect_period_s:=0.3', *extra], env,
+            cwd=REPO)
 
     def count(self, pattern: str) -> int:
         """Number of output lines matching pattern."""
@@ -194,7 +196,8 @@ def test_reconnecting_to_a_silent_board_never_blames_another_program(ros_env, tm
     """
     link = tmp_path / 'ttyESP32'
     board = ScriptedBoard(link, talking=False)
-    host = HostProcess(ros_env, link, 'link_timeout_s:=0.1', 'reconnect_period_s:=0.01')
+    host = HostProcess(ros_env, link, 'link_timeout_s:=0.1', 'reconnect_period_s:=0.01',
+                       'first_frame_timeout_s:=0.1')
     try:
         host.wait_for('does not answer')
         # Each connection writes a zero command when it opens and one when it is lost.
@@ -202,6 +205,31 @@ def test_reconnecting_to_a_silent_board_never_blames_another_program(ros_env, tm
         assert host.count('another program holds it') == 0, host.output()
         board.talking = True
         host.wait_for('The board at .* answers')
+    finally:
+        host.stop()
+        board.close()
+
+
+def test_a_board_in_its_repl_window_is_waited_for_without_an_error(ros_env, test_node,
+                                                                    tmp_path):
+    """
+    The port's opening resets a DevKit's ESP32: 2 s at its REPL window, silent.
+
+    The first frame of a connection is waited for first_frame_timeout_s (3 s), not
+    link_timeout_s (0.4 s here): a board that starts talking 1.5 s after the connection
+    is taken without a 'does not answer' error or a reconnect.
+    """
+    link = tmp_path / 'ttyESP32'
+    board = ScriptedBoard(link, talking=False)
+    host = HostProcess(ros_env, link, 'first_frame_timeout_s:=3.0')   # the default
+    ticks = Recorder(test_node.node, WheelTicks, 'wheel_ticks')
+    try:
+        host.wait_for('Connected to the board')
+        time.sleep(1.5)   # the board's REPL window, as the test plays it
+        board.talking = True
+        ticks.wait_for(lambda msg: True)
+        assert host.count('does not answer') == 0, host.output()
+        assert host.count('lost') == 0 and host.count('Connected to the board') == 1
     finally:
         host.stop()
         board.close()

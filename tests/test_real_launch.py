@@ -65,6 +65,12 @@ LAUNCH_ARGUMENTS = {
     'mecanum_control/teleop.launch.py': [
         f'terminal:={sys.executable} {REPO / "tests" / "real_launch" / "in_a_pty.py"}'],
 }
+#: More runs of a file with other arguments: (package/file, arguments).
+EXTRA_RUNS = [
+    # The simulated robot on the firmware as flashed (main.py under MicroPython): it
+    # boots through its 2 s REPL window, which must not read as an error.
+    ('robot_simulation/simulation.launch.py', ['board:=firmware']),
+]
 #: Executables that start no ROS node (the emulated ESP32 board on its pty).
 NOT_ROS_NODES = {'board_emulator'}
 #: Wall seconds for a whole system to start and every named node to join the graph.
@@ -173,12 +179,18 @@ def file_id(launch_file: Path) -> str:
     return f'{launch_file.parents[1].name}/{launch_file.name}'
 
 
-@pytest.mark.parametrize('launch_file', LAUNCH_FILES, ids=file_id)
-def test_the_real_launch_starts_the_whole_system(launch_file, real_launch_env, ros_env,
-                                                 marked_env, test_node):
+RUNS = [pytest.param(path, LAUNCH_ARGUMENTS.get(file_id(path), []), id=file_id(path))
+        for path in LAUNCH_FILES] + [
+    pytest.param(REPO / 'src' / name.split('/')[0] / 'launch' / name.split('/')[1],
+                 arguments, id=f'{name} {" ".join(arguments)}')
+    for name, arguments in EXTRA_RUNS]
+
+
+@pytest.mark.parametrize('launch_file, arguments', RUNS)
+def test_the_real_launch_starts_the_whole_system(launch_file, arguments, real_launch_env,
+                                                 ros_env, marked_env, test_node):
     path = installed(launch_file)
     assert path.exists(), f'{path} is not installed: run colcon build (make setup)'
-    arguments = LAUNCH_ARGUMENTS.get(file_id(launch_file), [])
     system = load_system(path, dict(argument.split(':=', 1) for argument in arguments))
     # launch names a process after its command's first word: the launch-prefix's, if any.
     executables = sorted(Path((node.launch_prefix or [node.executable])[0]).name

@@ -27,7 +27,9 @@ Safety: the port is opened for this program alone (an exclusive flock, as board_
 takes it): a second program is refused with a message naming the holder, and while
 another program holds it this node logs that once and retries every
 ``reconnect_period_s``. Efforts older than ``effort_timeout_s`` are replaced by zero;
-on link loss (read error, port gone, or no valid frame for ``link_timeout_s``) the
+on link loss (read error, port gone, or no valid frame for ``link_timeout_s``; for
+``first_frame_timeout_s``, 3 s, after the port is opened: a board reset by the opening
+sits 2 s in its REPL window) the
 stored command is zeroed and the node reopens ``port`` every ``reconnect_period_s``;
 after a reconnect only efforts received after it are sent. A zero command is written
 before the port is closed when it still takes one; the board itself stops the motors
@@ -99,6 +101,12 @@ class HardwareInterface(Node):
             'reconnect_period_s', self.declare_parameter('reconnect_period_s', 0.5).value)
         self.link_timeout_s = positive(
             'link_timeout_s', self.declare_parameter('link_timeout_s', 0.5).value)
+        # A board reset by the port's opening (a DevKit's DTR/RTS) or just powered sits
+        # in its REPL window (2 s) before its firmware talks: the first frame of a
+        # connection is waited for this long, not link_timeout_s.
+        self.first_frame_timeout_s = max(self.link_timeout_s, positive(
+            'first_frame_timeout_s', self.declare_parameter('first_frame_timeout_s',
+                                                            3.0).value))
         self.effort_timeout_s = positive(
             'effort_timeout_s', self.declare_parameter('effort_timeout_s', 0.2).value)
         command_rate_hz = positive(
@@ -371,7 +379,9 @@ class HardwareInterface(Node):
         if port is None:
             return
         silent_s = self._now() - max(self._last_frame_at, self._connected_at)
-        if silent_s > self.link_timeout_s:
+        limit_s = (self.link_timeout_s if self._frames_this_connection
+                   else self.first_frame_timeout_s)
+        if silent_s > limit_s:
             self._lose_link(port, f'no valid frame from the board for {silent_s:.2f} s')
 
     def _add_totals(self) -> None:
