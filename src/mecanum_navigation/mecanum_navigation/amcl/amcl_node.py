@@ -435,7 +435,9 @@ class AmclNode(Node):
         self.pose_pub.publish(msg)
 
     def publish_cloud(self, stamp) -> None:
-        """Publish the particles as a PoseArray in the global frame."""
+        """Publish the particles as a PoseArray in the global frame (if anyone listens)."""
+        if self.cloud_pub.get_subscription_count() == 0:
+            return   # up to 2000 poses a filter update, for a viewer or a recording only
         msg = PoseArray()
         msg.header.frame_id = self.global_frame
         msg.header.stamp = stamp

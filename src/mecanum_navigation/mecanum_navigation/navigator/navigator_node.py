@@ -528,8 +528,11 @@ class NavigatorNode(Node):
                 now_s - self.last_global_update_s >= self.global_update_period_s - 1e-9:
             self._update_global_costmap(now_s)
             self.last_global_update_s = now_s
+        # The costmaps go out only to a subscriber (a viewer, a recording): a grid of
+        # every cell a second for nobody cost a conversion and a copy each time.
         if self.global_costmap is not None and \
-                now_s - self.last_global_publish_s >= self.global_publish_period_s - 1e-9:
+                now_s - self.last_global_publish_s >= self.global_publish_period_s - 1e-9 \
+                and self.global_costmap_pub.get_subscription_count() > 0:
             self.global_costmap_pub.publish(occupancy_grid(
                 self.global_costmap.to_occupancy_map(), self.global_frame,
                 self.get_clock().now().to_msg()))
@@ -541,7 +544,8 @@ class NavigatorNode(Node):
             self.local_costmap.update()
             self.last_local_update_s = now_s
         if self.last_local_update_s > -math.inf and \
-                now_s - self.last_local_publish_s >= self.local_publish_period_s - 1e-9:
+                now_s - self.last_local_publish_s >= self.local_publish_period_s - 1e-9 \
+                and self.local_costmap_pub.get_subscription_count() > 0:
             self.local_costmap_pub.publish(occupancy_grid(
                 self.local_costmap.costmap.to_occupancy_map(), self.odom_frame,
                 self.get_clock().now().to_msg()))
