@@ -359,12 +359,18 @@ class VelocityController(Node):
 
     def _run_pids(self, targets: List[float], dt_s: float) -> List[float]:
         efforts = []
+        # While a latched wheel has every wheel held at zero, the others stand still on
+        # purpose: they are not judged (asked to turn and not turning, they would latch
+        # as stalled 0.5 s later and a healthy wheel would be blamed).
+        holding = any(stall.stalled for stall in self.stall_detectors)
         for i, (pid, stall) in enumerate(zip(self.pids, self.stall_detectors)):
             effort = pid.update(targets[i], self.measured[i], dt_s)
             if not math.isfinite(effort):  # never expected; a NaN must not become duty
                 pid.reset()
                 effort = 0.0
-            if stall.update(effort, self.measured[i], targets[i], dt_s):
+            if holding and not stall.stalled:
+                stall.reset()
+            elif stall.update(effort, self.measured[i], targets[i], dt_s):
                 pid.reset()
                 effort = 0.0
                 if WHEELS[i] not in self._reported:
