@@ -90,6 +90,11 @@ class WalkThrough:
             self.start(argv)
         return [self.run(argv) for argv in shells[last]]
 
+    def outputs(self) -> str:
+        """Return every running command's output so far (for a failure's message)."""
+        return '\n'.join(f'--- {shlex.join(process.process.args)}:\n{process.output()}'
+                         for process in self.background)
+
     def stop(self) -> None:
         """Ctrl-C every running command; nodes must exit 0 (ros2cli's own commands: 2)."""
         codes = [(process.process.args, process.stop(), process.output())
@@ -126,7 +131,10 @@ def test_the_robot_controller_readme_example(walk_through, test_node):
     # 'accepted: strafe left 0.5 m' comes at once: it may go out before robot_controller's
     # publisher has matched the echo (DDS discovery runs both ways; only the echo's side
     # is seen here); 'done' comes 2.5 s later.
-    echo.wait_for_output(r"data: 'done: strafe left'", timeout=30)
+    try:
+        echo.wait_for_output(r"data: 'done: strafe left'", timeout=30)
+    except AssertionError as error:   # once in CI: nothing at all (the command lost?)
+        raise AssertionError(f'{error}\n{walk_through.outputs()}') from None
     x, y, theta = settled_seed_position(status, time.monotonic(), moved_m=0.1)
     assert x == 0.0 and 0.5 - SEED_SHORTFALL_M < y <= 0.55 and theta == 0.0, (x, y, theta)
     walk_through.stop()
