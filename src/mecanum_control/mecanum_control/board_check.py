@@ -45,6 +45,7 @@ from typing import List, Optional, Tuple
 from mecanum_control import esp32_protocol as proto
 from mecanum_control.robot_config import (
     default_config_path, load_robot_config, RobotConfig, RobotConfigError)
+from mecanum_control.wheel_odometry import wrapped_delta
 
 WHEELS = ('FL', 'FR', 'RL', 'RR')
 COMMAND_PERIOD_S = 0.02
@@ -342,9 +343,8 @@ def ask_while_listening(session: BoardSession, prompt: str) -> str:
 
 
 def counts_moved(before: proto.EncoderTicks, after: proto.EncoderTicks) -> List[int]:
-    """Return each wheel's counts from one report to another (int32 wrap taken)."""
-    return [((b - a + (1 << 31)) % (1 << 32)) - (1 << 31)
-            for a, b in zip(before.ticks, after.ticks)]
+    """Return each wheel's counts from one report to another (the counters wrap)."""
+    return [wrapped_delta(a, b) for a, b in zip(before.ticks, after.ticks)]
 
 
 def fresh_ticks(session: BoardSession) -> Optional[proto.EncoderTicks]:

@@ -388,9 +388,25 @@ class SimulatedHardware:
 
 
 class LineBoard:
-    """A board whose hardware layer (``hw``, a SimulatedHardware) has its serial line."""
+    """
+    What every simulated board offers: a hardware layer (``hw``) with its serial line.
+
+    The board of the simulator is this one's subclass :class:`SimulatedBoard` (board_core
+    in the process) or robot_simulation's FirmwareBoard (main.py in a process of its
+    own), which overrides :attr:`reporting`, :attr:`events` and :meth:`close`.
+    """
 
     hw: SimulatedHardware
+    #: (simulated s, text) of each reset of the board, oldest first (none here).
+    events: Sequence[Tuple[float, str]] = ()
+
+    @property
+    def reporting(self) -> bool:
+        """Tell whether the board sends its reports (always, in this process)."""
+        return True
+
+    def close(self) -> None:
+        """Release what the board holds besides its line (nothing, in this process)."""
 
     @property
     def line(self) -> Optional[SerialLine]:

@@ -143,7 +143,7 @@ class HardwareInterface(Node):
         os.set_blocking(self._wake_write, False)
         self._selecting = threading.Condition()   # the port the reader selects on, if any
         self._selected_port = None
-        self._own_lock_since = {}   # 'at': link time this process's own lock was first met
+        self._own_lock_at: Optional[float] = None   # link time our own lock was first met
         self._serial: Optional[serial.Serial] = None
         self._connected_at = 0.0
         self._last_frame_at = 0.0
@@ -338,8 +338,9 @@ class HardwareInterface(Node):
             port = open_exclusive(self.port, self.baud_rate, timeout=0.05, write_timeout=0)
         except (serial.SerialException, OSError, ValueError) as error:
             own = isinstance(error, PortInUse) and f'pid {os.getpid()}:' in str(error)
-            if own and self._now() - self._own_lock_since.setdefault(
-                    'at', self._now()) < OWN_LOCK_GRACE_S:
+            if own and self._own_lock_at is None:
+                self._own_lock_at = self._now()
+            if own and self._now() - self._own_lock_at < OWN_LOCK_GRACE_S:
                 # This process's last connection, still held by the reader's select
                 # (woken): closed in a moment; the timer retries. Not another program
                 # (past the grace: another node of this process holds it; said below).
@@ -361,7 +362,7 @@ class HardwareInterface(Node):
             port.close()
             self._disconnect_reason = str(error)
             return
-        self._own_lock_since.clear()
+        self._own_lock_at = None
         with self._lock:
             self._add_totals()  # and a fresh decoder and trackers for this connection
             self._serial = port

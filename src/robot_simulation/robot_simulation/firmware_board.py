@@ -36,7 +36,7 @@ import shutil
 import subprocess
 import tempfile
 import time
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 from mecanum_control import esp32_wire as wire
 from mecanum_control.board_sim import LineBoard, SerialLine, SimulatedHardware
@@ -76,12 +76,11 @@ class FirmwareBoard(LineBoard):
         self.faults = FaultFlags(0)
         self.last_command_seq = 0
         self.resets = 0
-        #: (simulated s, text) of each reset and firmware end, oldest first.
-        self.events: List[tuple] = []
+        self.events: List[Tuple[float, str]] = []   # resets and firmware ends
         self._fed_us = -1
         self._wdt_ms = 0
         self._reported_us: Optional[int] = None   # simulated us of its last output
-        self._stopped_at_us: Optional[int] = None   # the firmware ended (at the REPL)
+        self._stopped = False   # main.py ended: the board sits at its REPL
         self.process: Optional[subprocess.Popen] = None
         self._boot()
 
@@ -109,7 +108,7 @@ class FirmwareBoard(LineBoard):
         self._lines = b''
         self._fed_us, self._wdt_ms = -1, 0
         self._reported_us = None
-        self._stopped_at_us = None
+        self._stopped = False
         self._pending.clear()
         self._host_decoder.reset()
 
@@ -172,7 +171,7 @@ class FirmwareBoard(LineBoard):
     def poll(self) -> None:
         """Run the firmware up to the plant's time: this physics step's board."""
         now_us = self.plant.time_us
-        if self.process is None or self._stopped_at_us is not None:
+        if self.process is None or self._stopped:
             self._while_stopped(now_us)
             return
         self.receive()
@@ -195,7 +194,7 @@ class FirmwareBoard(LineBoard):
             return
         self.plant.efforts = [drive / PWM_FULL for drive in drives]
         self._relay_output()
-        if self._wdt_ms and now_us - self._fed_us > self._wdt_ms * 1000:
+        if self._watchdog_overdue(now_us):
             self._reset(f'the watchdog was not fed for {self._wdt_ms} ms')
 
     def _run_step(self) -> Optional[List[int]]:
@@ -239,7 +238,7 @@ class FirmwareBoard(LineBoard):
         self._relay_output()
         code = self.process.wait()
         self.plant.efforts = [0.0] * 4
-        self._stopped_at_us = self.plant.time_us
+        self._stopped = True
         what = (f'the watchdog resets it {self._wdt_ms} ms later' if self._wdt_ms
                 else 'no watchdog started: it stays stopped')
         self.events.append((self.plant.time_us / 1e6,
@@ -249,9 +248,12 @@ class FirmwareBoard(LineBoard):
         """Drop the host's bytes (the board is stopped); reset it when its watchdog is due."""
         self.receive()
         self._pending.clear()
-        if (self.process is not None and self._wdt_ms
-                and now_us - max(self._fed_us, 0) > self._wdt_ms * 1000):
+        if self.process is not None and self._watchdog_overdue(now_us):
             self._reset(f'the watchdog was not fed for {self._wdt_ms} ms (firmware ended)')
+
+    def _watchdog_overdue(self, now_us: int) -> bool:
+        """Tell whether the watchdog, once started, has gone unfed for its timeout."""
+        return bool(self._wdt_ms) and now_us - self._fed_us > self._wdt_ms * 1000
 
     def _relay_output(self) -> None:
         """Send what the firmware wrote to its serial port on to the host."""
@@ -276,7 +278,7 @@ class FirmwareBoard(LineBoard):
     @property
     def reporting(self) -> bool:
         """Tell whether the board sends (not booting, stopped or just reset)."""
-        return (self._reported_us is not None and self._stopped_at_us is None
+        return (self._reported_us is not None and not self._stopped
                 and self.plant.time_us - self._reported_us <= REPORTING_WITHIN_US)
 
     @property

@@ -180,10 +180,8 @@ class Simulation:
         self.board.poll()
 
     def close(self) -> None:
-        """Stop the board's firmware process, if it runs one (board 'firmware')."""
-        close = getattr(self.board, 'close', None)
-        if close is not None:
-            close()
+        """Release the board (board 'firmware': stop its firmware's process)."""
+        self.board.close()
 
     def add_fault(self, fault: FaultSpec) -> Optional[str]:
         """

@@ -292,7 +292,7 @@ class SimulatorNode(Node):
         sim.step()
         if sim.fault_changes:
             self.report_faults()
-        events = getattr(sim.board, 'events', ())
+        events = sim.board.events
         if len(events) != self._board_events:   # the firmware's resets (board firmware)
             for at_s, text in events[self._board_events:]:
                 self.get_logger().error(f'{text} (at {at_s:.3f} s)')
@@ -434,7 +434,7 @@ class SimulatorNode(Node):
 
     def _board_unreliable_now(self) -> bool:
         """Tell whether a serial fault acts or the board is silent (booting, reset)."""
-        return self.link.faulty or not getattr(self.sim.board, 'reporting', True)
+        return self.link.faulty or not self.sim.board.reporting
 
     def wait_for_stack(self, executor, stop) -> None:
         """
