@@ -150,3 +150,24 @@ def test_the_executor_is_torn_down_while_signals_are_deferred(ros_env, tmp_path)
     assert result.returncode == 0, result.stdout + result.stderr
     assert result.stdout.split() == ['teardown', 'torn', 'down'], result.stdout
     assert 'Traceback' not in result.stderr, result.stderr
+
+
+def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tmp_path):
+    # The SIGINT and SIGTERM handlers are Python: a process stuck in C code never runs
+    # them. SIGQUIT is answered by faulthandler's C handler: every thread's stack, then
+    # the default action (quit), so a stuck node says where it waits.
+    script = tmp_path / 'slow_node.py'
+    script.write_text(NODE)
+    process = subprocess.Popen([sys.executable, str(script)], env=ros_env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'busy'
+        process.send_signal(signal.SIGQUIT)    # inside time.sleep (C) in the callback
+        _stdout, stderr = process.communicate(timeout=15)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    print(stderr)
+    assert process.returncode == -signal.SIGQUIT
+    assert 'Current thread' in stderr
+    assert 'in on_timer' in stderr

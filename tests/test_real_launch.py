@@ -77,6 +77,9 @@ NOT_ROS_NODES = {'board_emulator'}
 START_TIMEOUT_S = 90.0
 #: Wall seconds every process must then stay up (a parameter error kills at start-up).
 STAY_UP_S = 3.0
+#: Wall seconds after Ctrl-C after which a process that has not ended counts as stuck
+#: (launch escalates to SIGTERM at 5 s).
+STUCK_AFTER_SIGINT_S = 4.5
 
 
 def build_real_launch() -> Path:
@@ -186,6 +189,30 @@ RUNS = [pytest.param(path, LAUNCH_ARGUMENTS.get(file_id(path), []), id=file_id(p
     for name, arguments in EXTRA_RUNS]
 
 
+def dump_the_stacks_of_stuck_processes(output: LaunchOutput) -> None:
+    """
+    SIGQUIT the processes still running STUCK_AFTER_SIGINT_S after Ctrl-C.
+
+    Each process prints every thread's Python stack (node_main registers faulthandler
+    for SIGQUIT) to its stderr, which launch shows, then quits: the test fails and its
+    report says where the process waited, which its SIGINT and SIGTERM handlers, not
+    reached while it is stuck in C code, never could.
+    """
+    def all_ended():
+        return len(output.events('EXIT')) >= len(output.events('START'))
+
+    if output.wait(all_ended, STUCK_AFTER_SIGINT_S):
+        return
+    ended = {name for name, _ in output.events('EXIT')}
+    for name, pid in output.events('START'):
+        if name not in ended:
+            try:
+                os.kill(int(pid), signal.SIGQUIT)
+            except ProcessLookupError:
+                pass
+    output.wait(all_ended, 5.0)
+
+
 @pytest.mark.parametrize('launch_file, arguments', RUNS)
 def test_the_real_launch_starts_the_whole_system(launch_file, arguments, real_launch_env,
                                                  ros_env, marked_env, test_node):
@@ -235,6 +262,7 @@ def test_the_real_launch_starts_the_whole_system(launch_file, arguments, real_la
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGINT)     # Ctrl-C
+            dump_the_stacks_of_stuck_processes(output)
         try:
             process.wait(timeout=30)
         except subprocess.TimeoutExpired:

@@ -28,6 +28,7 @@ machine's load.
 """
 
 from contextlib import contextmanager
+import faulthandler
 import functools
 import os
 import signal
@@ -69,7 +70,14 @@ def _raise_keyboard_interrupt(_signum, _frame):
 
 
 def raise_keyboard_interrupt_on_signals() -> None:
-    """Turn SIGTERM and SIGINT (also inherited as ignored or blocked) into KeyboardInterrupt."""
+    """
+    Turn SIGTERM and SIGINT (also inherited as ignored or blocked) into KeyboardInterrupt.
+
+    SIGQUIT (Ctrl and backslash) first prints every thread's Python stack to stderr, then quits as
+    by default: it is written by a C handler, so it also shows where a process stuck
+    in C code (which Python's SIGINT and SIGTERM handlers never reach) is waiting.
+    """
+    faulthandler.register(signal.SIGQUIT, all_threads=True, chain=True)
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
