@@ -10,6 +10,7 @@ the three runs agree on every variant's status. Ratios, measured in one run, are
 compares; the absolute numbers depend on the machine and its load.
 
     ./mecanum exec python bench/sweep_throughput.py [--sweep FILE] [--json OUT]
+        [--ways jobs1 jobs2 ray]
 """
 
 import argparse
@@ -22,6 +23,8 @@ import tempfile
 import textwrap
 import time
 
+#: The ways a sweep can run, as --ways names them.
+WAYS = ['jobs1', 'jobs2', 'ray']
 SCENARIO = """
 scenario:
   name: two_goals
@@ -65,6 +68,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--sweep', help='a sweep file (default: the built-in 8 variants)')
     parser.add_argument('--json', help='write the numbers to this file')
+    parser.add_argument('--ways', nargs='+', choices=WAYS, default=WAYS,
+                        help='which ways to run (default: all three)')
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix='sweep_bench_'))
     if args.sweep:
@@ -75,23 +80,27 @@ def main() -> int:
         sweep.write_text(textwrap.dedent(SWEEP))
     results = {}
     for label, extra in (('--jobs 1', ('--jobs', '1')), ('--jobs 2', ('--jobs', '2'))):
+        if label.replace(' ', '').replace('-', '') not in args.ways:
+            continue
         out = work / label.replace(' ', '').replace('-', '')
         results[label] = (run(sweep, out, *extra), rows(out))
-    from ray.cluster_utils import Cluster
-    import ray
-    cluster = Cluster(initialize_head=True, head_node_args={'num_cpus': 1})
-    cluster.add_node(num_cpus=1)
-    cluster.wait_for_nodes()
-    try:
-        out = work / 'ray'
-        results['Ray, 2 nodes x 1 CPU'] = (run(sweep, out, '--ray', cluster.address),
-                                           rows(out))
-    finally:
-        ray.shutdown()
-        cluster.shutdown()
-    reference = results['--jobs 1'][1]
+    if 'ray' in args.ways:
+        from ray.cluster_utils import Cluster
+        import ray
+        cluster = Cluster(initialize_head=True, head_node_args={'num_cpus': 1})
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        try:
+            out = work / 'ray'
+            results['Ray, 2 nodes x 1 CPU'] = (run(sweep, out, '--ray', cluster.address),
+                                               rows(out))
+        finally:
+            ray.shutdown()
+            cluster.shutdown()
+    first = next(iter(results))
+    reference = results[first][1]
     print(f'sweep {sweep} ({len(reference)} variants), 2-core machine')
-    print(f'{"how":<22} {"wall s":>8} {"variants/h":>11} {"s/variant":>10} {"vs jobs 1":>10} '
+    print(f'{"how":<22} {"wall s":>8} {"variants/h":>11} {"s/variant":>10} {"vs first":>10} '
           f'{"same statuses":>14}')
     numbers = {}
     for label, (wall, found) in results.items():
@@ -99,7 +108,7 @@ def main() -> int:
         mean = sum(w for _, w in found.values()) / len(found)
         same = {i: s for i, (s, _) in found.items()} == {i: s for i, (s, _) in
                                                           reference.items()}
-        ratio = results['--jobs 1'][0] / wall
+        ratio = results[first][0] / wall
         print(f'{label:<22} {wall:8.0f} {per_hour:11.1f} {mean:10.1f} {ratio:9.2f}x '
               f'{str(same):>14}')
         numbers[label] = {'wall_s': wall, 'variants_per_hour': per_hour,

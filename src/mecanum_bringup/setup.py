@@ -25,7 +25,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
     ] + share('launch/*.launch.py', 'launch/*.launch.yaml', 'config/**/*.yaml',
-              'scenarios/*.yaml', 'sweeps/*.yaml'),
+              'config/*.xml', 'scenarios/*.yaml', 'sweeps/*.yaml'),
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='mecanum_robot maintainers',
