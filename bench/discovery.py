@@ -31,7 +31,7 @@ import time
 
 REPO = Path(__file__).resolve().parents[1]
 PROFILE = REPO / 'src' / 'mecanum_bringup' / 'config' / 'fastdds_discovery.xml'
-PUBLISHER = '''
+PUBLISHER = """
 import rclpy
 from std_msgs.msg import String
 rclpy.init()
@@ -43,8 +43,8 @@ try:
     rclpy.spin(node)
 except KeyboardInterrupt:
     pass
-'''
-SUBSCRIBER = '''
+"""
+SUBSCRIBER = """
 import time
 import rclpy
 from std_msgs.msg import String
@@ -60,7 +60,7 @@ while not first and time.monotonic() - start < 10.0:
     if matched is None and subscription.get_publisher_count() > 0:
         matched = time.monotonic() - start
 print(f'{matched if matched is not None else -1} {first[0] - start if first else -1}')
-'''
+"""
 
 
 def trial(profile: bool, domain_id: int, delay_s: float) -> tuple:
