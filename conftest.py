@@ -15,16 +15,28 @@ of the machine's load (the demo's tour, see tests/test_demo.py); they are marked
 other test of the run shares. A waiting ``alone`` test holds the turnstile, so no new
 test starts until it had its turn (the lock prefers the writer). Without xdist every
 test runs alone anyway, and no lock is taken.
+
+Started with SIGINT and SIGQUIT ignored (``make test &`` in a script: a shell without
+job control starts background commands so), every process the tests start would
+inherit that, and Ctrl-C, which most integration tests send to stop a system, would
+reach no program that does not handle it itself (launch respawned nodes that had
+stopped and never ended). The suite restores both to their defaults at start.
 """
 
 import contextlib
 import fcntl
 import multiprocessing
 from pathlib import Path
+import signal
 import tempfile
 import uuid
 
 import pytest
+
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+if signal.getsignal(signal.SIGQUIT) == signal.SIG_IGN:
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
 @contextlib.contextmanager

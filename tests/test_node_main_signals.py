@@ -152,14 +152,19 @@ def test_the_executor_is_torn_down_while_signals_are_deferred(ros_env, tmp_path)
     assert 'Traceback' not in result.stderr, result.stderr
 
 
-def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tmp_path):
+@pytest.mark.parametrize('inherited', [signal.SIG_DFL, signal.SIG_IGN])
+def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tmp_path,
+                                                                     inherited):
     # The SIGINT and SIGTERM handlers are Python: a process stuck in C code never runs
     # them. SIGQUIT is answered by faulthandler's C handler: every thread's stack, then
-    # the default action (quit), so a stuck node says where it waits.
+    # the default action (quit), so a stuck node says where it waits. Also when started
+    # with SIGQUIT ignored (`cmd &` in a script without job control ignores SIGINT and
+    # SIGQUIT): chained to an inherited SIG_IGN, the dump left the process running.
     script = tmp_path / 'slow_node.py'
     script.write_text(NODE)
     process = subprocess.Popen([sys.executable, str(script)], env=ros_env, text=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               preexec_fn=lambda: signal.signal(signal.SIGQUIT, inherited))
     try:
         assert process.stdout.readline().strip() == 'busy'
         process.send_signal(signal.SIGQUIT)    # inside time.sleep (C) in the callback
@@ -171,3 +176,14 @@ def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tm
     assert process.returncode == -signal.SIGQUIT
     assert 'Current thread' in stderr
     assert 'in on_timer' in stderr
+
+
+def test_the_suite_passes_on_default_ctrl_c_and_sigquit_to_what_it_starts():
+    # conftest.py restores them when the suite itself was started with them ignored.
+    assert signal.getsignal(signal.SIGINT) != signal.SIG_IGN
+    assert signal.getsignal(signal.SIGQUIT) == signal.SIG_DFL
+    probe = subprocess.run([sys.executable, '-c', 'import signal; print(signal.getsignal('
+                            'signal.SIGINT) is signal.default_int_handler, '
+                            'signal.getsignal(signal.SIGQUIT) == signal.SIG_DFL)'],
+                           capture_output=True, text=True, timeout=30)
+    assert probe.stdout.split() == ['True', 'True'], probe.stdout
