@@ -73,9 +73,10 @@ def raise_keyboard_interrupt_on_signals() -> None:
     """
     Turn SIGTERM and SIGINT (also inherited as ignored or blocked) into KeyboardInterrupt.
 
-    SIGQUIT (Ctrl and backslash) first prints every thread's Python stack to stderr, then quits as
-    by default (also when inherited as ignored, as `cmd &` in a script does): it is written by a C handler, so it also shows where a process stuck
-    in C code (which Python's SIGINT and SIGTERM handlers never reach) is waiting.
+    SIGQUIT (Ctrl and backslash) first prints every thread's Python stack to stderr, then
+    quits as by default (also when inherited as ignored, as `cmd &` in a script does). A
+    C handler writes it, so it also shows where a process stuck in C code (which Python's
+    SIGINT and SIGTERM handlers never reach) is waiting.
     """
     signal.signal(signal.SIGQUIT, signal.SIG_DFL)    # also when inherited as ignored
     faulthandler.register(signal.SIGQUIT, all_threads=True, chain=True)
