@@ -207,16 +207,32 @@ class MarkedEnvironment:
         """Return the PIDs of live processes started with this environment (or by them)."""
         return processes_with_marker(self.marker)
 
+    def kill_leftovers(self) -> list:
+        """SIGKILL every live process started with this environment; return their PIDs."""
+        left = self.leftovers()
+        for pid in left:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        return left
+
 
 @pytest.fixture
-def marked_env():
+def marked_env(ros_env):
     """
-    Return a MarkedEnvironment for this test's subprocesses (localhost-only discovery).
+    Yield a MarkedEnvironment for this test's subprocesses (localhost-only discovery).
 
     Other tests may run beside this one (pytest-xdist), so a test looking for its
-    leftover processes looks for its own marker only.
+    leftover processes looks for its own marker only. Whatever the test's outcome, the
+    processes it left are killed at the end, before its ROS domain (ros_env, torn down
+    after this) goes back to the pool: a failed test's leftovers (CI once: launch
+    killed, its nodes orphaned and still publishing on the wall clock) otherwise talked
+    into the later tests that leased the same domain.
     """
-    return MarkedEnvironment()
+    marked = MarkedEnvironment()
+    yield marked
+    marked.kill_leftovers()
 
 
 @pytest.fixture

@@ -177,13 +177,3 @@ def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tm
     assert 'Current thread' in stderr
     assert 'in on_timer' in stderr
 
-
-def test_the_suite_passes_on_default_ctrl_c_and_sigquit_to_what_it_starts():
-    # conftest.py restores them when the suite itself was started with them ignored.
-    assert signal.getsignal(signal.SIGINT) != signal.SIG_IGN
-    assert signal.getsignal(signal.SIGQUIT) == signal.SIG_DFL
-    probe = subprocess.run([sys.executable, '-c', 'import signal; print(signal.getsignal('
-                            'signal.SIGINT) is signal.default_int_handler, '
-                            'signal.getsignal(signal.SIGQUIT) == signal.SIG_DFL)'],
-                           capture_output=True, text=True, timeout=30)
-    assert probe.stdout.split() == ['True', 'True'], probe.stdout
