@@ -51,6 +51,9 @@ GOALS = [[0], [1], [2], [0, 2], [1, 2]]
 EXPECTED = {5 * seed + i: 'UNEXPECTED' if 1 in goals else 'OK'
             for seed in (0, 1) for i, goals in enumerate(GOALS)}
 MARKER = 'MECANUM_SWEEP_TEST'
+#: Wall seconds a stopping system may take to end by itself (the launch runner's SIGINT,
+#: then SIGTERM, then SIGKILL of its nodes) before what is left counts as left running.
+LEFTOVER_GRACE_S = 30.0
 
 
 def store_rows(out: Path) -> dict:
@@ -123,6 +126,13 @@ def sweep_env(tmp_path, marked_env):
     marker = uuid.uuid4().hex
     env = dict(marked_env.env, **{MARKER: marker})
     yield sweep, env, marker
+    # A system whose Ray worker died with its node (cluster.remove_node, then the
+    # cluster's shutdown) is still stopping itself when the test ends: its launch runner
+    # got SIGTERM from the worker's death and gives its nodes SIGINT, then SIGTERM
+    # (LEFTOVER_GRACE_S in all). A process still there after that never ends by itself.
+    deadline = time.monotonic() + LEFTOVER_GRACE_S
+    while processes_with_variable(MARKER, marker) and time.monotonic() < deadline:
+        time.sleep(0.2)
     left = processes_with_variable(MARKER, marker)
     for pid in left:
         os.kill(pid, signal.SIGKILL)
