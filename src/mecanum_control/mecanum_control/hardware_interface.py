@@ -60,7 +60,7 @@ from mecanum_control.imu_calibration import ImuRestCalibrator
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.publisher_check_node import (
-    declare_publisher_check, poll_publisher_check, start_publisher_checks)
+    declare_publisher_check, MatchWatch, poll_publisher_check, start_publisher_checks)
 from mecanum_control.runtime_parameters import read_only_parameters
 from mecanum_control.wheel_odometry import wrapped_delta
 from mecanum_interfaces.msg import WheelTicks
@@ -169,8 +169,10 @@ class HardwareInterface(Node):
         self.ticks_pub = self.create_publisher(WheelTicks, 'wheel_ticks', 50)
         self.imu_pub = self.create_publisher(Imu, 'imu/data_raw', 50)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.match_watch = MatchWatch(self, self.check_publishers)
         self.efforts_sub = self.create_subscription(
-            Float32MultiArray, 'motor_efforts', self.on_efforts, 10)
+            Float32MultiArray, 'motor_efforts', self.on_efforts, 10,
+            event_callbacks=self.match_watch.event_callbacks())
         # Only the expected node(s) drive the board (publisher_check): zero meanwhile.
         self.efforts_check = declare_publisher_check(
             self, 'motor_efforts_publishers', self.efforts_sub.topic_name,
@@ -264,9 +266,9 @@ class HardwareInterface(Node):
                 or (stream_gone and since_sent_s >= 0.9 * self.keepalive_s)):
             self._send_efforts()
 
-    def check_publishers(self) -> None:
+    def check_publishers(self, may_resume: bool = True) -> None:
         """Send zero while a node other than the expected ones publishes motor_efforts."""
-        change = poll_publisher_check(self, self.efforts_check, self.diag_pub)
+        change = poll_publisher_check(self, self.efforts_check, self.diag_pub, may_resume)
         if change is not None:
             with self._lock:  # 'stop': zero now; 'resume': only efforts from now on
                 self._efforts = ZERO_EFFORTS

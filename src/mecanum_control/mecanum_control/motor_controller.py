@@ -46,7 +46,7 @@ from mecanum_control.messages import diagnostic_array, wheel_array
 from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.publisher_check_node import (
-    declare_publisher_check, poll_publisher_check, start_publisher_checks)
+    declare_publisher_check, MatchWatch, poll_publisher_check, start_publisher_checks)
 from mecanum_control.runtime_parameters import (
     PUBLISHER_CHECK_REASON, RuntimeParameters, WIRING_REASON)
 from rclpy.node import Node
@@ -123,11 +123,15 @@ class MotorController(Node):
 
         self.speeds_pub = self.create_publisher(Float32MultiArray, 'motor_speeds', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.match_watch = MatchWatch(self, self.check_publishers)
         if stamped:
             self.cmd_sub = self.create_subscription(
-                TwistStamped, 'cmd_vel', lambda msg: self.on_twist(msg.twist), 10)
+                TwistStamped, 'cmd_vel', lambda msg: self.on_twist(msg.twist), 10,
+                event_callbacks=self.match_watch.event_callbacks())
         else:
-            self.cmd_sub = self.create_subscription(Twist, 'cmd_vel', self.on_twist, 10)
+            self.cmd_sub = self.create_subscription(
+                Twist, 'cmd_vel', self.on_twist, 10,
+                event_callbacks=self.match_watch.event_callbacks())
         # Only the expected node(s) drive (publisher_check): wheels held at zero meanwhile.
         self.cmd_check = declare_publisher_check(
             self, 'cmd_vel_publishers', self.cmd_sub.topic_name,
@@ -223,9 +227,9 @@ class MotorController(Node):
             self._reported_status = status
             self.publish_diagnostics()
 
-    def check_publishers(self) -> None:
+    def check_publishers(self, may_resume: bool = True) -> None:
         """Hold the wheels while a node other than the expected ones publishes cmd_vel."""
-        if poll_publisher_check(self, self.cmd_check, self.diag_pub) == 'stop':
+        if poll_publisher_check(self, self.cmd_check, self.diag_pub, may_resume) == 'stop':
             self.publish_speeds()
 
     def close(self) -> None:

@@ -124,12 +124,14 @@ class PublisherCheck:
         """Tell whether unexpected publishers are there (the robot must not move)."""
         return bool(self.intruders)
 
-    def update(self, publishers: Iterable) -> Optional[str]:
+    def update(self, publishers: Iterable, may_resume: bool = True) -> Optional[str]:
         """
         Take the topic's publishers now; return 'stop', 'resume' or None (no change).
 
         publishers: (node name, node namespace) pairs, or objects with node_name and
-        node_namespace (rclpy's TopicEndpointInfo).
+        node_namespace (rclpy's TopicEndpointInfo). may_resume False: an extra look
+        between the periodic ones (a new publisher matched), which may stop but neither
+        resumes nor counts toward resume_after.
         """
         if not self.enabled:
             return None
@@ -141,6 +143,8 @@ class PublisherCheck:
             found.remove(UNKNOWN_LABEL)   # perhaps discovery in progress: look again
         self._unknown_before = unknown_now
         found = tuple(found)
+        if not may_resume and not found:
+            return None
         self._clean_updates = 0 if found else self._clean_updates + 1
         if found == self.intruders or (not found and self._clean_updates < self.resume_after):
             return None

@@ -8,6 +8,13 @@ of their inputs: :func:`declare_publisher_check` declares a check's parameter
 and its timer, and :func:`poll_publisher_check` asks the ROS graph, logs a change
 (ERROR when an unexpected publisher appears, WARN when it has gone) and reports the
 check on /diagnostics. What a node does meanwhile (zero efforts, zero targets) is its own.
+
+A new publisher of a checked input is not left to the next period: :class:`MatchWatch`
+gives the input's subscription a ``matched`` event callback that runs the node's check
+MATCH_RECHECK_DELAYS_S after the match (its node's name reaches the graph some 10-100 ms
+after its endpoint), so a stray publisher is named and the wheels stopped within about
+0.1 s of its first message instead of up to a period and more. An endpoint still of no
+known node at the second look counts as unexpected (PublisherCheck): when in doubt, stop.
 """
 
 from typing import Callable, Optional, Sequence
@@ -18,7 +25,12 @@ from mecanum_control.parameters import declare_number, positive
 from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+
+#: Steady seconds after a new publisher of a watched input matched at which the node's
+#: publisher check runs (then again at its period).
+MATCH_RECHECK_DELAYS_S = (0.1, 0.3)
 
 
 def declare_publisher_check(node: Node, parameter: str, topic: str, stopping: str,
@@ -40,9 +52,14 @@ def start_publisher_checks(node: Node, checks: Sequence[PublisherCheck],
     return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
-def poll_publisher_check(node: Node, check: PublisherCheck, diag_pub) -> Optional[str]:
-    """Update check from the ROS graph, log a change, report it; return 'stop', 'resume'."""
-    change = check.update(node.get_publishers_info_by_topic(check.topic))
+def poll_publisher_check(node: Node, check: PublisherCheck, diag_pub,
+                         may_resume: bool = True) -> Optional[str]:
+    """
+    Update check from the ROS graph, log a change, report it; return 'stop', 'resume'.
+
+    may_resume False for the extra looks of :class:`MatchWatch` (PublisherCheck.update).
+    """
+    change = check.update(node.get_publishers_info_by_topic(check.topic), may_resume)
     if change == 'stop':
         node.get_logger().error(check.message)
     elif change == 'resume':
@@ -54,3 +71,45 @@ def poll_publisher_check(node: Node, check: PublisherCheck, diag_pub) -> Optiona
             DiagnosticStatus.ERROR if check.stopped else DiagnosticStatus.OK, check.message,
             [KeyValue(key=key, value=value) for key, value in check.values], hardware_id=''))
     return change
+
+
+class MatchWatch:
+    """
+    Run a node's publisher check soon after a new publisher of a watched input matched.
+
+    Pass ``event_callbacks()`` to the create_subscription of each checked input; the
+    check (the node's callback, the same as its periodic one, called with
+    ``may_resume=False``: these looks may stop, never resume) then runs at each of
+    MATCH_RECHECK_DELAYS_S after a match, on a steady timer that ends itself.
+    """
+
+    def __init__(self, node: Node, callback: Callable[..., None]):
+        """Watch for node; callback runs the node's publisher checks."""
+        self._node = node
+        self._callback = callback
+        self._timer = None
+        self._since_s = 0.0
+        self._done = 0
+
+    def event_callbacks(self) -> SubscriptionEventCallbacks:
+        """Return the subscription event callbacks that start the re-checks."""
+        return SubscriptionEventCallbacks(matched=self._on_matched)
+
+    def _on_matched(self, info) -> None:
+        if info.current_count_change <= 0:
+            return                      # a publisher left: the periodic check says so
+        self._since_s, self._done = 0.0, 0
+        if self._timer is None:
+            self._timer = self._node.create_timer(
+                MATCH_RECHECK_DELAYS_S[0], self._on_timer,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _on_timer(self) -> None:
+        self._since_s += MATCH_RECHECK_DELAYS_S[0]
+        due = [d for d in MATCH_RECHECK_DELAYS_S if d <= self._since_s + 1e-6]
+        if len(due) > self._done:
+            self._done = len(due)
+            self._callback(may_resume=False)
+        if self._done == len(MATCH_RECHECK_DELAYS_S):
+            self._node.destroy_timer(self._timer)
+            self._timer = None

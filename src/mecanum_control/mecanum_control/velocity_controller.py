@@ -57,7 +57,7 @@ from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains, StallConfig,
                                  StallDetector)
 from mecanum_control.publisher_check_node import (
-    declare_publisher_check, poll_publisher_check, start_publisher_checks)
+    declare_publisher_check, MatchWatch, poll_publisher_check, start_publisher_checks)
 from mecanum_control.runtime_parameters import PUBLISHER_CHECK_REASON, RuntimeParameters
 from rclpy.node import Node
 from rclpy.time import Time
@@ -206,10 +206,13 @@ class VelocityController(Node):
 
         self.efforts_pub = self.create_publisher(Float32MultiArray, 'motor_efforts', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.match_watch = MatchWatch(self, self.check_publishers)
         self.target_sub = self.create_subscription(
-            Float32MultiArray, 'motor_speeds', self.on_targets, 10)
+            Float32MultiArray, 'motor_speeds', self.on_targets, 10,
+            event_callbacks=self.match_watch.event_callbacks())
         self.joint_sub = self.create_subscription(
-            JointState, 'joint_states', self.on_joint_states, 20)
+            JointState, 'joint_states', self.on_joint_states, 20,
+            event_callbacks=self.match_watch.event_callbacks())
         # Only the expected nodes feed the loops and drive the motors (publisher_check):
         # zero efforts meanwhile. On its own output, motor_efforts, it resumes one check
         # later than hardware_interface (which zeroes the board meanwhile, same period),
@@ -319,10 +322,10 @@ class VelocityController(Node):
         """Tell whether an unexpected node publishes motor_speeds, joint_states or efforts."""
         return any(check.stopped for check in self.publisher_checks)
 
-    def check_publishers(self) -> None:
+    def check_publishers(self, may_resume: bool = True) -> None:
         """Stop every wheel while a node other than the expected ones publishes an input."""
         for check in self.publisher_checks:
-            change = poll_publisher_check(self, check, self.diag_pub)
+            change = poll_publisher_check(self, check, self.diag_pub, may_resume)
             if change is not None:
                 # Only what arrives from now on counts (none of the intruder's data).
                 self.target_time = self.measured_time = None

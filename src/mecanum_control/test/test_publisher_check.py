@@ -110,6 +110,22 @@ def test_resuming_can_wait_for_several_clean_checks():
         PublisherCheck('/motor_efforts', ['velocity_controller'], resume_after=0)
 
 
+def test_an_extra_look_after_a_match_may_stop_but_never_resumes():
+    """The looks of MatchWatch between the periodic ones: may_resume=False."""
+    check = PublisherCheck('/motor_efforts', ['velocity_controller'], resume_after=2)
+    assert check.update([('velocity_controller', '/')], may_resume=False) is None
+    assert check.update([('rogue', '/')], may_resume=False) == 'stop'
+    assert check.intruders == ('/rogue',)
+    assert check.update([], may_resume=False) is None     # gone: only a periodic look says so
+    assert check.update([], may_resume=False) is None     # and these do not count toward 2
+    assert check.stopped
+    assert check.update([]) is None
+    assert check.update([]) == 'resume'
+    # An endpoint of no known node, seen at both extra looks: stop.
+    assert check.update([UNKNOWN], may_resume=False) is None
+    assert check.update([UNKNOWN], may_resume=False) == 'stop'
+
+
 def test_a_publisher_without_a_node_name_counts_once_seen_twice_in_a_row():
     """An endpoint whose node rmw has not discovered yet has placeholder names."""
     check = PublisherCheck('/motor_efforts', ['velocity_controller'])
