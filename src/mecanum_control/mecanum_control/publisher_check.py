@@ -130,21 +130,31 @@ class PublisherCheck:
 
         publishers: (node name, node namespace) pairs, or objects with node_name and
         node_namespace (rclpy's TopicEndpointInfo). may_resume False: an extra look
-        between the periodic ones (a new publisher matched), which may stop but neither
-        resumes nor counts toward resume_after.
+        between the periodic ones (a new publisher matched), which stops for a named
+        stranger but neither resumes, nor counts toward resume_after, nor judges an
+        endpoint of no known node.
         """
         if not self.enabled:
             return None
         publishers = [(p.node_name, p.node_namespace) if hasattr(p, 'node_name') else p
                       for p in publishers]
         found = unexpected_publishers(self.expected, publishers, self.namespace)
+        if not may_resume:
+            # An extra look: a named stranger stops at once; an endpoint of no known node
+            # is left to the periodic looks (its name may be on its way: under load it
+            # takes longer than these looks are apart, and a false stop is an ERROR).
+            found = tuple(name for name in found if name != UNKNOWN_LABEL)
+            if not found or found == self.intruders:
+                return None
+            previous, self.intruders = self.intruders, found
+            self.departed = tuple(name for name in previous if name not in found)
+            self._clean_updates = 0
+            return 'stop'
         unknown_now = UNKNOWN_LABEL in found
         if unknown_now and not self._unknown_before:
             found.remove(UNKNOWN_LABEL)   # perhaps discovery in progress: look again
         self._unknown_before = unknown_now
         found = tuple(found)
-        if not may_resume and not found:
-            return None
         self._clean_updates = 0 if found else self._clean_updates + 1
         if found == self.intruders or (not found and self._clean_updates < self.resume_after):
             return None

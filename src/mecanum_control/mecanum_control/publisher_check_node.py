@@ -13,8 +13,8 @@ A new publisher of a checked input is not left to the next period: :class:`Match
 gives the input's subscription a ``matched`` event callback that runs the node's check
 MATCH_RECHECK_DELAYS_S after the match (its node's name reaches the graph some 10-100 ms
 after its endpoint), so a stray publisher is named and the wheels stopped within about
-0.1 s of its first message instead of up to a period and more. An endpoint still of no
-known node at the second look counts as unexpected (PublisherCheck): when in doubt, stop.
+0.1 s of its first message instead of up to a period and more. An endpoint of no known
+node is left to the periodic looks (seen at two in a row, it counts: PublisherCheck).
 """
 
 from typing import Callable, Optional, Sequence

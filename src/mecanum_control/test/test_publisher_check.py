@@ -121,9 +121,12 @@ def test_an_extra_look_after_a_match_may_stop_but_never_resumes():
     assert check.stopped
     assert check.update([]) is None
     assert check.update([]) == 'resume'
-    # An endpoint of no known node, seen at both extra looks: stop.
+    # An endpoint of no known node is for the periodic looks only (its name may come).
     assert check.update([UNKNOWN], may_resume=False) is None
-    assert check.update([UNKNOWN], may_resume=False) == 'stop'
+    assert check.update([UNKNOWN], may_resume=False) is None
+    assert not check.stopped
+    assert check.update([UNKNOWN]) is None
+    assert check.update([UNKNOWN]) == 'stop'
 
 
 def test_a_publisher_without_a_node_name_counts_once_seen_twice_in_a_row():
