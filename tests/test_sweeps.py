@@ -56,6 +56,16 @@ MARKER = 'MECANUM_SWEEP_TEST'
 LEFTOVER_GRACE_S = 30.0
 
 
+def describe_process(pid: int) -> str:
+    """Return 'pid (parent ppid): command line' of a live process, for a failure message."""
+    try:
+        command = Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ').decode()
+        parent = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[1]
+    except OSError:
+        return f'{pid} (gone)'
+    return f'{pid} (parent {parent}): {command.strip()[:300]}'
+
+
 def store_rows(out: Path) -> dict:
     """Return {index: (status, finished_at, worker)} of a sweep's store (empty if none)."""
     path = out / 'results.sqlite'
@@ -134,9 +144,10 @@ def sweep_env(tmp_path, marked_env):
     while processes_with_variable(MARKER, marker) and time.monotonic() < deadline:
         time.sleep(0.2)
     left = processes_with_variable(MARKER, marker)
+    described = [describe_process(pid) for pid in left]
     for pid in left:
         os.kill(pid, signal.SIGKILL)
-    assert left == [], f'processes left running: {left}'
+    assert left == [], f'processes left running: {described}'
 
 
 @pytest.mark.long
