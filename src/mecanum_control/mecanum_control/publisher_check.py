@@ -113,6 +113,8 @@ class PublisherCheck:
         self.departed: Tuple[str, ...] = ()
         self._unknown_before = False
         self._clean_updates = 0
+        #: The last update saw an endpoint of no known node (its name may be on its way).
+        self.unknown_seen = False
 
     @property
     def enabled(self) -> bool:
@@ -139,6 +141,7 @@ class PublisherCheck:
         publishers = [(p.node_name, p.node_namespace) if hasattr(p, 'node_name') else p
                       for p in publishers]
         found = unexpected_publishers(self.expected, publishers, self.namespace)
+        self.unknown_seen = UNKNOWN_LABEL in found
         if not may_resume:
             # An extra look: a named stranger stops at once; an endpoint of no known node
             # is left to the periodic looks (its name may be on its way: under load it

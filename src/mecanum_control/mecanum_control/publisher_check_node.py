@@ -83,10 +83,12 @@ class MatchWatch:
     MATCH_RECHECK_DELAYS_S after a match, on a steady timer that ends itself.
     """
 
-    def __init__(self, node: Node, callback: Callable[..., None]):
-        """Watch for node; callback runs the node's publisher checks."""
+    def __init__(self, node: Node, callback: Callable[..., None],
+                 on_match: Optional[Callable[[], None]] = None):
+        """Watch for node; callback runs its publisher checks; on_match runs at a match."""
         self._node = node
         self._callback = callback
+        self._on_match = on_match
         self._timer = None
         self._since_s = 0.0
         self._done = 0
@@ -98,6 +100,8 @@ class MatchWatch:
     def _on_matched(self, info) -> None:
         if info.current_count_change <= 0:
             return                      # a publisher left: the periodic check says so
+        if self._on_match is not None:
+            self._on_match()
         self._since_s, self._done = 0.0, 0
         if self._timer is None:
             self._timer = self._node.create_timer(

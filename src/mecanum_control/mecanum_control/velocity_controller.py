@@ -206,7 +206,11 @@ class VelocityController(Node):
 
         self.efforts_pub = self.create_publisher(Float32MultiArray, 'motor_efforts', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.match_watch = MatchWatch(self, self.check_publishers)
+        # A new publisher of an input is unvetted until a look at the graph has named it:
+        # meanwhile its data must not latch a stall (a stray joint_states saying the
+        # wheels stand still latched all four before the check could name it).
+        self._unvetted = False
+        self.match_watch = MatchWatch(self, self.check_publishers, self._on_new_publisher)
         self.target_sub = self.create_subscription(
             Float32MultiArray, 'motor_speeds', self.on_targets, 10,
             event_callbacks=self.match_watch.event_callbacks())
@@ -322,8 +326,14 @@ class VelocityController(Node):
         """Tell whether an unexpected node publishes motor_speeds, joint_states or efforts."""
         return any(check.stopped for check in self.publisher_checks)
 
+    def _on_new_publisher(self) -> None:
+        """Judge no stall until the publisher of an input that just matched is named."""
+        self._unvetted = True
+
     def check_publishers(self, may_resume: bool = True) -> None:
         """Stop every wheel while a node other than the expected ones publishes an input."""
+        if not any(check.enabled for check in self.publisher_checks):
+            self._unvetted = False
         for check in self.publisher_checks:
             change = poll_publisher_check(self, check, self.diag_pub, may_resume)
             if change is not None:
@@ -331,6 +341,9 @@ class VelocityController(Node):
                 self.target_time = self.measured_time = None
             if change == 'stop' and check.topic == self.efforts_pub.topic_name:
                 self._clear_stalls()
+        if not any(check.enabled and check.unknown_seen for check in self.publisher_checks
+                   if check.topic != self.efforts_pub.topic_name):
+            self._unvetted = False      # every publisher of the inputs has a name now
 
     def on_clear_wheel_faults(self, request, response):
         """Clear the latched wheel faults (std_srvs/Trigger): the wheels may drive again."""
@@ -364,8 +377,9 @@ class VelocityController(Node):
         efforts = []
         # While a latched wheel has every wheel held at zero, the others stand still on
         # purpose: they are not judged (asked to turn and not turning, they would latch
-        # as stalled 0.5 s later and a healthy wheel would be blamed).
-        holding = any(stall.stalled for stall in self.stall_detectors)
+        # as stalled 0.5 s later and a healthy wheel would be blamed). Nor while an input
+        # has a publisher not yet named (its data may be a stray's).
+        holding = self._unvetted or any(stall.stalled for stall in self.stall_detectors)
         for i, (pid, stall) in enumerate(zip(self.pids, self.stall_detectors)):
             effort = pid.update(targets[i], self.measured[i], dt_s)
             if not math.isfinite(effort):  # never expected; a NaN must not become duty

@@ -122,7 +122,9 @@ def test_an_extra_look_after_a_match_may_stop_but_never_resumes():
     assert check.update([]) is None
     assert check.update([]) == 'resume'
     # An endpoint of no known node is for the periodic looks only (its name may come).
+    assert not check.unknown_seen
     assert check.update([UNKNOWN], may_resume=False) is None
+    assert check.unknown_seen
     assert check.update([UNKNOWN], may_resume=False) is None
     assert not check.stopped
     assert check.update([UNKNOWN]) is None
