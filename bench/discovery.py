@@ -84,7 +84,7 @@ def trial(profile: bool, domain_id: int, delay_s: float) -> tuple:
 
 
 def summary(waits: list) -> dict:
-    """Return the median, 90th percentile and largest of a list of waits (s)."""
+    """Return the mean, median, 90th percentile and largest of a list of waits (s)."""
     ordered = sorted(waits)
     return {'mean_s': statistics.fmean(ordered), 'median_s': statistics.median(ordered),
             'p90_s': ordered[min(len(ordered) - 1, int(0.9 * len(ordered)))],

@@ -146,17 +146,13 @@ class PublisherCheck:
             # An extra look: a named stranger stops at once; an endpoint of no known node
             # is left to the periodic looks (its name may be on its way: under load it
             # takes longer than these looks are apart, and a false stop is an ERROR).
-            found = tuple(name for name in found if name != UNKNOWN_LABEL)
-            if not found or found == self.intruders:
+            found = [name for name in found if name != UNKNOWN_LABEL]
+            if not found:
                 return None
-            previous, self.intruders = self.intruders, found
-            self.departed = tuple(name for name in previous if name not in found)
-            self._clean_updates = 0
-            return 'stop'
-        unknown_now = UNKNOWN_LABEL in found
-        if unknown_now and not self._unknown_before:
-            found.remove(UNKNOWN_LABEL)   # perhaps discovery in progress: look again
-        self._unknown_before = unknown_now
+        else:
+            if self.unknown_seen and not self._unknown_before:
+                found.remove(UNKNOWN_LABEL)   # perhaps discovery in progress: look again
+            self._unknown_before = self.unknown_seen
         found = tuple(found)
         self._clean_updates = 0 if found else self._clean_updates + 1
         if found == self.intruders or (not found and self._clean_updates < self.resume_after):

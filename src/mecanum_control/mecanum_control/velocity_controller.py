@@ -332,8 +332,6 @@ class VelocityController(Node):
 
     def check_publishers(self, may_resume: bool = True) -> None:
         """Stop every wheel while a node other than the expected ones publishes an input."""
-        if not any(check.enabled for check in self.publisher_checks):
-            self._unvetted = False
         for check in self.publisher_checks:
             change = poll_publisher_check(self, check, self.diag_pub, may_resume)
             if change is not None:
