@@ -5,8 +5,8 @@ motor_controller (a real process, its own ROS domain) expects only zone_guard on
 cmd_vel, and looks at the ROS graph every publisher_check_period_s, here 60 s, so that
 only the subscription's ``matched`` event (publisher_check_node.MatchWatch) can be what
 finds the test node publishing there: motor_controller must log the ERROR naming it
-within seconds (the look 0.1 s after the match, once DDS has told its node's name),
-not at the next period.
+within seconds (the looks from 0.1 s after the match on, every 0.2 s until DDS has told
+its node's name), not at the next period.
 """
 
 from pathlib import Path
@@ -19,7 +19,7 @@ pytestmark = pytest.mark.integration
 REPO = Path(__file__).resolve().parents[1]
 MOTOR_CONTROLLER = REPO / 'install/mecanum_control/lib/mecanum_control/motor_controller'
 #: Wall seconds for the ERROR after the publisher appears: discovery (0.5 s
-#: announcements) plus the looks at 0.1 and 0.3 s, with a margin for a loaded machine;
+#: announcements) plus the looks at 0.1, 0.3 s and on while unnamed, with a margin for load;
 #: far below the 60 s period.
 NAMED_WITHIN_S = 15.0
 

@@ -169,7 +169,8 @@ class HardwareInterface(Node):
         self.ticks_pub = self.create_publisher(WheelTicks, 'wheel_ticks', 50)
         self.imu_pub = self.create_publisher(Imu, 'imu/data_raw', 50)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.match_watch = MatchWatch(self, self.check_publishers)
+        self.match_watch = MatchWatch(self, self.check_publishers,
+                                      lambda: self.efforts_check.unknown_seen)
         self.efforts_sub = self.create_subscription(
             Float32MultiArray, 'motor_efforts', self.on_efforts, 10,
             event_callbacks=self.match_watch.event_callbacks())

@@ -123,7 +123,8 @@ class MotorController(Node):
 
         self.speeds_pub = self.create_publisher(Float32MultiArray, 'motor_speeds', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.match_watch = MatchWatch(self, self.check_publishers)
+        self.match_watch = MatchWatch(self, self.check_publishers,
+                                      lambda: self.cmd_check.unknown_seen)
         if stamped:
             self.cmd_sub = self.create_subscription(
                 TwistStamped, 'cmd_vel', lambda msg: self.on_twist(msg.twist), 10,

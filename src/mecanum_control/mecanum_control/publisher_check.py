@@ -32,6 +32,40 @@ UNKNOWN_LABEL = '(an endpoint of no known ROS node)'
 _NAME = re.compile(r'^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$')
 
 
+#: Steady seconds after a new publisher of a watched input matched at which the node's
+#: publisher check runs (then again at its period).
+MATCH_RECHECK_DELAYS_S = (0.1, 0.3)
+#: After those, while a publisher of a watched input has no node name yet: a look every
+#: MATCH_UNNAMED_PERIOD_S up to MATCH_UNNAMED_LIMIT_S after the match (steady seconds).
+MATCH_UNNAMED_PERIOD_S = 0.2
+MATCH_UNNAMED_LIMIT_S = 10.0
+#: The steady timer of those looks (s): every delay above is a multiple of it.
+MATCH_TIMER_PERIOD_S = 0.1
+
+
+def match_look_due(since_s: float, looks_done: int, unnamed: bool) -> bool:
+    """
+    Tell whether a look is due since_s steady seconds after a match (the schedule).
+
+    looks_done: the looks made since the match; unnamed: a watched input has a publisher
+    whose node name has not reached the graph yet. The looks: at each of
+    MATCH_RECHECK_DELAYS_S, then, while unnamed, every MATCH_UNNAMED_PERIOD_S up to
+    MATCH_UNNAMED_LIMIT_S.
+    """
+    eps = 1e-6
+    fixed = len(MATCH_RECHECK_DELAYS_S)
+    if looks_done < fixed:
+        return since_s + eps >= MATCH_RECHECK_DELAYS_S[looks_done]
+    next_s = MATCH_RECHECK_DELAYS_S[-1] + (looks_done - fixed + 1) * MATCH_UNNAMED_PERIOD_S
+    return unnamed and since_s + eps >= min(next_s, MATCH_UNNAMED_LIMIT_S)
+
+
+def match_watch_over(since_s: float, looks_done: int, unnamed: bool) -> bool:
+    """Tell whether the looks after a match are over (the same arguments)."""
+    return looks_done >= len(MATCH_RECHECK_DELAYS_S) and (
+        not unnamed or since_s + 1e-6 >= MATCH_UNNAMED_LIMIT_S)
+
+
 def parse_expected_publishers(parameter: str, value) -> Tuple[str, ...]:
     """
     Return the node names of a parameter: '' (or nothing) = no check.

@@ -13,8 +13,11 @@ A new publisher of a checked input is not left to the next period: :class:`Match
 gives the input's subscription a ``matched`` event callback that runs the node's check
 MATCH_RECHECK_DELAYS_S after the match (its node's name reaches the graph some 10-100 ms
 after its endpoint), so a stray publisher is named and the wheels stopped within about
-0.1 s of its first message instead of up to a period and more. An endpoint of no known
-node is left to the periodic looks (seen at two in a row, it counts: PublisherCheck).
+0.1 s of its first message instead of up to a period and more. While an endpoint still has
+no node name (under load the name can come later than 0.3 s: CI saw it), the looks go on
+every MATCH_UNNAMED_PERIOD_S up to MATCH_UNNAMED_LIMIT_S after the match; an endpoint of
+no known node itself is judged by the periodic looks only (seen at two in a row, it
+counts: PublisherCheck).
 """
 
 from typing import Callable, Optional, Sequence
@@ -22,15 +25,13 @@ from typing import Callable, Optional, Sequence
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from mecanum_control.messages import diagnostic_array
 from mecanum_control.parameters import declare_number, positive
-from mecanum_control.publisher_check import parse_expected_publishers, PublisherCheck
+from mecanum_control.publisher_check import (
+    match_look_due, MATCH_TIMER_PERIOD_S, match_watch_over, parse_expected_publishers,
+    PublisherCheck)
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-
-#: Steady seconds after a new publisher of a watched input matched at which the node's
-#: publisher check runs (then again at its period).
-MATCH_RECHECK_DELAYS_S = (0.1, 0.3)
 
 
 def declare_publisher_check(node: Node, parameter: str, topic: str, stopping: str,
@@ -80,14 +81,20 @@ class MatchWatch:
     Pass ``event_callbacks()`` to the create_subscription of each checked input; the
     check (the node's callback, the same as its periodic one, called with
     ``may_resume=False``: these looks may stop, never resume) then runs at each of
-    MATCH_RECHECK_DELAYS_S after a match, on a steady timer that ends itself.
+    MATCH_RECHECK_DELAYS_S after a match, and on while ``unnamed()`` says a publisher has
+    no node name yet (:func:`match_look_due`), on a steady timer that ends itself.
     """
 
     def __init__(self, node: Node, callback: Callable[..., None],
-                 on_match: Optional[Callable[[], None]] = None):
-        """Watch for node; callback runs its publisher checks; on_match runs at a match."""
+                 unnamed: Callable[[], bool], on_match: Optional[Callable[[], None]] = None):
+        """
+        Watch for node; callback runs its publisher checks; on_match runs at a match.
+
+        unnamed: whether a checked input has a publisher of no known node (after a look).
+        """
         self._node = node
         self._callback = callback
+        self._unnamed = unnamed
         self._on_match = on_match
         self._timer = None
         self._since_s = 0.0
@@ -105,15 +112,14 @@ class MatchWatch:
         self._since_s, self._done = 0.0, 0
         if self._timer is None:
             self._timer = self._node.create_timer(
-                MATCH_RECHECK_DELAYS_S[0], self._on_timer,
+                MATCH_TIMER_PERIOD_S, self._on_timer,
                 clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _on_timer(self) -> None:
-        self._since_s += MATCH_RECHECK_DELAYS_S[0]
-        due = [d for d in MATCH_RECHECK_DELAYS_S if d <= self._since_s + 1e-6]
-        if len(due) > self._done:
-            self._done = len(due)
+        self._since_s += MATCH_TIMER_PERIOD_S
+        if match_look_due(self._since_s, self._done, self._unnamed()):
+            self._done += 1
             self._callback(may_resume=False)
-        if self._done == len(MATCH_RECHECK_DELAYS_S):
+        if match_watch_over(self._since_s, self._done, self._unnamed()):
             self._node.destroy_timer(self._timer)
             self._timer = None

@@ -210,7 +210,8 @@ class VelocityController(Node):
         # meanwhile its data must not latch a stall (a stray joint_states saying the
         # wheels stand still latched all four before the check could name it).
         self._unvetted = False
-        self.match_watch = MatchWatch(self, self.check_publishers, self._on_new_publisher)
+        self.match_watch = MatchWatch(self, self.check_publishers, self._inputs_unnamed,
+                                      self._on_new_publisher)
         self.target_sub = self.create_subscription(
             Float32MultiArray, 'motor_speeds', self.on_targets, 10,
             event_callbacks=self.match_watch.event_callbacks())
@@ -330,6 +331,11 @@ class VelocityController(Node):
         """Judge no stall until the publisher of an input that just matched is named."""
         self._unvetted = True
 
+    def _inputs_unnamed(self) -> bool:
+        """Tell whether an input had a publisher of no known node at the last look."""
+        return any(check.enabled and check.unknown_seen for check in self.publisher_checks
+                   if check.topic != self.efforts_pub.topic_name)
+
     def check_publishers(self, may_resume: bool = True) -> None:
         """Stop every wheel while a node other than the expected ones publishes an input."""
         for check in self.publisher_checks:
@@ -339,8 +345,7 @@ class VelocityController(Node):
                 self.target_time = self.measured_time = None
             if change == 'stop' and check.topic == self.efforts_pub.topic_name:
                 self._clear_stalls()
-        if not any(check.enabled and check.unknown_seen for check in self.publisher_checks
-                   if check.topic != self.efforts_pub.topic_name):
+        if not self._inputs_unnamed():
             self._unvetted = False      # every publisher of the inputs has a name now
 
     def on_clear_wheel_faults(self, request, response):

@@ -7,8 +7,9 @@ node namespace) pairs, with rmw's placeholder names for an endpoint whose node i
 """
 
 from mecanum_control.publisher_check import (
-    parse_expected_publishers, PublisherCheck, qualified_name, unexpected_publishers,
-    UNKNOWN_NAMESPACE, UNKNOWN_NODE_NAME)
+    match_look_due, MATCH_TIMER_PERIOD_S, MATCH_UNNAMED_LIMIT_S, MATCH_UNNAMED_PERIOD_S,
+    match_watch_over, parse_expected_publishers, PublisherCheck, qualified_name,
+    unexpected_publishers, UNKNOWN_NAMESPACE, UNKNOWN_NODE_NAME)
 import pytest
 
 UNKNOWN = (UNKNOWN_NODE_NAME, UNKNOWN_NAMESPACE)
@@ -165,3 +166,37 @@ def test_status_values_for_diagnostics():
                                   'unexpected_publishers': '/rogue'}
     check.update([('motor_controller', '/')])
     assert dict(check.values)['unexpected_publishers'] == ''
+
+
+def looks(unnamed_until_s: float, end_s: float = 12.0):
+    """
+    Drive the match schedule on a 0.1 s timer; return the times of its looks.
+
+    A look sees an unnamed publisher before unnamed_until_s (as MatchWatch's nodes do:
+    unnamed is what the last look saw).
+    """
+    since_s, done, times, unnamed = 0.0, 0, [], False
+    while since_s < end_s:
+        since_s = round(since_s + MATCH_TIMER_PERIOD_S, 6)
+        if match_look_due(since_s, done, unnamed):
+            done += 1
+            times.append(since_s)
+            unnamed = since_s < unnamed_until_s
+        if match_watch_over(since_s, done, unnamed):
+            return times
+    raise AssertionError(f'the watch never ended (looks at {times})')
+
+
+def test_after_a_match_the_looks_are_at_0_1_and_0_3_s_when_the_name_is_there():
+    assert looks(unnamed_until_s=0.0) == [0.1, 0.3]
+
+
+def test_after_a_match_the_looks_go_on_while_a_publisher_has_no_name():
+    """CI (loaded): a stray publisher's node name came later than 0.3 s after its match."""
+    assert looks(unnamed_until_s=0.8) == [0.1, 0.3, 0.5, 0.7, 0.9]
+    # Unnamed for good: every 0.2 s up to the limit, then the periodic looks only.
+    times = looks(unnamed_until_s=100.0)
+    assert times[:4] == [0.1, 0.3, 0.5, 0.7]
+    assert times[-1] == MATCH_UNNAMED_LIMIT_S
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    assert max(gaps) <= MATCH_UNNAMED_PERIOD_S + 1e-6 and min(gaps) > 0.0
