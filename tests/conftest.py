@@ -487,6 +487,46 @@ class ClockAcks:
             self._lockstep.events()   # parts gone and back: nothing to log here
 
 
+class ClockAnswerer:
+    """
+    A test node's part in the lockstep: each /clock answered on /clock_ack as name.
+
+    :meth:`hold` keeps the answers back (simulated time waits, up to the simulator's
+    lockstep timeout), :meth:`release` sends them.
+    """
+
+    def __init__(self, node, name: str):
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.name = name
+        self._publisher = node.create_publisher(Header, '/clock_ack', reliable)
+        self._lock = threading.Lock()
+        self._holding = False
+        self._held = []
+        node.create_subscription(Clock, '/clock', self._on_clock, reliable)
+
+    def _on_clock(self, msg: Clock):
+        with self._lock:
+            self._held.append(msg.clock)
+            if not self._holding:
+                self._answer()
+
+    def _answer(self):
+        for stamp in self._held:
+            publish_quietly(self._publisher, Header(stamp=stamp, frame_id=self.name))
+        self._held.clear()
+
+    def hold(self):
+        """Answer no /clock until release()."""
+        with self._lock:
+            self._holding = True
+
+    def release(self):
+        """Answer the /clock messages held back, and each new one at once again."""
+        with self._lock:
+            self._holding = False
+            self._answer()
+
+
 class TestNode:
     """An rclpy node of the test process, spun in a background thread."""
 
@@ -553,6 +593,17 @@ class TestNode:
                     publish_quietly, publisher, msg))
                 time.sleep(max(0.0, step_s / real_time_factor - (time.monotonic() - published)))
         threading.Thread(target=run, daemon=True).start()
+
+    def answer_clock(self, name: str) -> 'ClockAnswerer':
+        """
+        Take part in a simulator's lockstep as name: answer each /clock on /clock_ack.
+
+        The answer goes out from the spin thread once the messages that came before that
+        /clock have been handled (callbacks of subscriptions made before this one run
+        first in a round of the executor), so a test that commands the robot from what it
+        receives is waited for and cannot fall behind simulated time on a loaded machine.
+        """
+        return ClockAnswerer(self.node, name)
 
     def wait_sim(self, sim_seconds: float, timeout: float = 60.0):
         """Wait until simulated time (clock_ns) has advanced by sim_seconds."""

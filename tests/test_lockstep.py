@@ -11,6 +11,8 @@ Integration: lockstep. Simulated time waits for the stack, and a silent stack is
    own process) in lockstep at 'max': freezing one process of the stack (SIGSTOP
    velocity_controller) stops simulated time at once; the simulator names the process
    after the timeout; resumed (SIGCONT), it takes part again.
+3. A test node that answers /clock (TestNode.answer_clock, as test_slam's route driver
+   does) holds simulated time the same way while it holds its answers.
 """
 
 import os
@@ -82,6 +84,39 @@ def test_the_simulator_waits_for_the_board_and_names_it_when_it_stays_silent(
             assert 'Traceback' not in sim.output()
         finally:
             host.close()
+    finally:
+        sim.stop()
+
+
+def test_a_test_node_that_answers_the_clock_holds_simulated_time(ros_env, test_node,
+                                                                 tmp_path):
+    """
+    TestNode.answer_clock: a test that drives the robot is waited for (test_slam's route).
+
+    CI at 870cc44 (loaded): test_slam's route driver, then outside the lockstep, fell
+    behind simulated time at max speed, the robot overshot a corner into the collision
+    monitor's stop zone and the route never ended.
+    """
+    sim = Process([sys.executable, '-m', 'robot_simulation.simulator_node', '--ros-args',
+                   '-p', 'world:=apartment', '-p', f'board_port:={tmp_path / "ttySIM"}',
+                   '-p', 'lockstep:=true', '-p', 'real_time_factor:=0.0',
+                   '-p', 'lockstep_timeout_s:=2.0', '-p', 'lockstep_give_up_s:=60.0'],
+                  ros_env)
+    try:
+        clock = test_node.record(Clock, '/clock')
+        answers = test_node.answer_clock('route_driver')
+        sim.wait_for_line_at(r'lockstep: route_driver takes part', timeout=60)
+        answers.hold()
+        held_at = time.monotonic()
+        silent_at, match = sim.wait_for_line_at(
+            r'lockstep: route_driver has not answered /clock (\d+\.\d+) s for', timeout=30)
+        stalled_s = float(match.group(1))
+        late = [clock_s(msg) for when, msg in clock.messages
+                if held_at + 0.2 <= when < silent_at - 0.05 and clock_s(msg) > stalled_s + 1e-6]
+        assert not late, f'/clock ran past {stalled_s} s while the test owed an answer'
+        answers.release()
+        sim.wait_for_line_at(r'lockstep: route_driver answers again', timeout=30)
+        clock.wait_for(lambda m: clock_s(m) > stalled_s + 0.5, timeout=30)
     finally:
         sim.stop()
 

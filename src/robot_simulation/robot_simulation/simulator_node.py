@@ -375,8 +375,11 @@ class SimulatorNode(Node):
                         if self._board_unreliable():
                             # A serial fault may lose or delay the command: the wire answers.
                             self.lockstep.board_command(time.monotonic())
-                        self.wait_for_stack(executor, stop)
-                        next_spin = time.monotonic() + SPIN_PERIOD_S
+                        if self.wait_for_stack(executor, stop):
+                            next_spin = time.monotonic() + SPIN_PERIOD_S
+                        # else nobody owed an answer (none known yet, or the board
+                        # alone before it answers): spin on SPIN_PERIOD_S as without
+                        # lockstep, or no process's first /clock_ack is ever taken.
                     now = time.monotonic()
                     if now >= next_spin:  # parameter services; spinning every step costs 3x
                         executor.spin_once(timeout_sec=0.0)
@@ -436,15 +439,17 @@ class SimulatorNode(Node):
         """Tell whether a serial fault acts or the board is silent (booting, reset)."""
         return self.link.faulty or not self.sim.board.reporting
 
-    def wait_for_stack(self, executor, stop) -> None:
+    def wait_for_stack(self, executor, stop) -> bool:
         """
         Lockstep: return once the stack has answered the /clock just published.
 
         Takes the board's commands from the serial line and the /clock_ack messages
         meanwhile; raises LockstepError when the board has stopped answering for good.
+        Returns whether it spun the executor (nobody owed an answer: it did not).
         """
         gate, link, board = self.lockstep, self.link, self.sim.board
         resend_at = time.monotonic() + CLOCK_RESEND_S
+        spun = False
         while not stop.is_set():
             board.receive()
             now = self._take_board_commands()
@@ -456,7 +461,8 @@ class SimulatorNode(Node):
                 else:
                     self.get_logger().info(event)
             if not missing:
-                return
+                return spun
+            spun = True
             if now >= resend_at and missing != [BOARD]:
                 # A respawned process subscribed after this /clock went out.
                 resend_at = now + CLOCK_RESEND_S
@@ -470,6 +476,7 @@ class SimulatorNode(Node):
             else:
                 executor.spin_once(
                     timeout_sec=ACK_WAIT_S if BOARD in missing else GATE_CHECK_S)
+        return spun
 
     def close(self) -> None:
         """Unplug the simulated board (removes its link); stop its firmware."""
