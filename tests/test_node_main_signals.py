@@ -41,7 +41,13 @@ NODE = textwrap.dedent('''
 
         def close(self):
             print('closing', flush=True)
-            time.sleep(float(sys.argv[1]) if len(sys.argv) > 1 else 0.0)
+            seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 0.0
+            if len(sys.argv) > 2 and sys.argv[2] == 'holding_the_gil':
+                # A call stuck in C code that holds the GIL (PyDLL does not release it).
+                import ctypes
+                ctypes.PyDLL(None).sleep(int(seconds))
+            else:
+                time.sleep(seconds)
             print(f'closed after {self.calls} callbacks', flush=True)
 
 
@@ -107,6 +113,35 @@ def test_a_close_that_hangs_is_left_after_the_close_timeout(ros_env, tmp_path):
     assert process.returncode == 0
     assert 'closed after' not in stdout                  # left during the hang
     assert f'closing took more than {CLOSE_TIMEOUT_S:g} s' in stderr
+
+
+def test_a_close_stuck_in_c_code_holding_the_gil_is_ended_with_its_stacks(ros_env, tmp_path):
+    """
+    The watchdog thread cannot run while a C call holds the GIL: faulthandler ends it.
+
+    CI saw motor_controller wait in rclpy's destroy_node (inside rcl) with its watchdog
+    thread never woken, until the test's SIGQUIT 4.5 s after Ctrl-C.
+    """
+    from mecanum_control.node_main import CLOSE_STUCK_GRACE_S, CLOSE_TIMEOUT_S
+    script = tmp_path / 'slow_node.py'
+    script.write_text(NODE)
+    process = subprocess.Popen([sys.executable, str(script), '30', 'holding_the_gil'],
+                               env=ros_env, text=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'busy'
+        process.send_signal(signal.SIGINT)
+        assert process.stdout.readline().strip() == 'closing'
+        stdout, stderr = process.communicate(timeout=CLOSE_TIMEOUT_S + CLOSE_STUCK_GRACE_S
+                                             + 10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    print(stderr)
+    assert process.returncode == 1
+    assert 'closed after' not in stdout
+    assert f'Timeout (0:00:0{CLOSE_TIMEOUT_S + CLOSE_STUCK_GRACE_S:.0f})!' in stderr
+    assert 'in close' in stderr                        # where it was stuck
 
 
 #: A node spun by spin_waking with an executor whose teardown gets a second Ctrl-C, as

@@ -52,6 +52,8 @@ from std_msgs.msg import Header
 #: destroy stuck in rclpy (seen once in 3000 real-launch stops of motor_controller) made
 #: every stop an ERROR. The node's own close() (its final zero) has run or is running.
 CLOSE_TIMEOUT_S = 3.0
+#: Seconds after CLOSE_TIMEOUT_S at which a close stuck in C code is ended (close_watchdog).
+CLOSE_STUCK_GRACE_S = 1.0
 
 
 def _leave_stuck_close(name: str) -> None:
@@ -59,6 +61,29 @@ def _leave_stuck_close(name: str) -> None:
     print(f'[WARN] [{name}]: closing took more than {CLOSE_TIMEOUT_S:g} s (stuck in '
           'destroy or rclpy shutdown): leaving now', file=sys.stderr, flush=True)
     os._exit(0)
+
+
+@contextmanager
+def close_watchdog(name: str) -> Iterator[None]:
+    """
+    Within: a process whose close takes too long leaves instead of hanging.
+
+    After CLOSE_TIMEOUT_S a thread prints a WARN and leaves (exit 0). That thread needs
+    the GIL, which a call stuck in C code may hold (CI saw motor_controller wait in
+    rclpy's destroy_node, inside rcl, with its watchdog thread never woken): one
+    CLOSE_STUCK_GRACE_S later faulthandler's own C thread prints every thread's Python
+    stack and ends the process (exit 1), so nothing is left to launch's SIGTERM and
+    SIGKILL, and the report says where it was stuck.
+    """
+    watchdog = threading.Timer(CLOSE_TIMEOUT_S, _leave_stuck_close, args=(name,))
+    watchdog.daemon = True
+    watchdog.start()
+    faulthandler.dump_traceback_later(CLOSE_TIMEOUT_S + CLOSE_STUCK_GRACE_S, exit=True)
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+        watchdog.cancel()
 
 
 #: The longest the default spin waits before returning to Python (to see signals), s.
@@ -479,10 +504,7 @@ def run_node(node_factory: Callable[[], Node], name: str,
         # SIGINT to the process group, then launch's own): the second must not cut the
         # close short with a traceback. SIGTERM (launch's escalation) still interrupts.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        watchdog = threading.Timer(CLOSE_TIMEOUT_S, _leave_stuck_close, args=(name,))
-        watchdog.daemon = True
-        watchdog.start()
-        close_node(node)
-        rclpy.try_shutdown()
-        watchdog.cancel()
+        with close_watchdog(name):
+            close_node(node)
+            rclpy.try_shutdown()
     return 0
