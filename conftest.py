@@ -8,8 +8,8 @@ marked ``alone`` come last (see below).
 
 Tests marked ``alone`` run with no other test beside them. Most tests do not care:
 lockstep simulations wait for the stack, test clocks step on after the test process,
-unit tests measure nothing in time. A few measure the wall clock on purpose (a wall-clock
-simulator's stop budget, a CPU hog the test starts itself), or are not yet independent
+unit tests measure nothing in time. A few measure the wall clock on purpose (a CPU hog
+the test starts itself, the board emulator's real-time link), or are not yet independent
 of the machine's load (the demo's tour, see tests/test_demo.py); they are marked
 ``@pytest.mark.alone`` and take a machine-wide exclusive lock of this run, which every
 other test of the run shares. A waiting ``alone`` test holds the turnstile, so no new

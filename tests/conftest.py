@@ -492,12 +492,14 @@ class ClockAnswerer:
     A test node's part in the lockstep: each /clock answered on /clock_ack as name.
 
     :meth:`hold` keeps the answers back (simulated time waits, up to the simulator's
-    lockstep timeout), :meth:`release` sends them.
+    lockstep timeout), :meth:`release` sends them. on_clock(clock_ns), if given, runs at
+    each /clock before its answer: what it publishes goes out before time steps on.
     """
 
-    def __init__(self, node, name: str):
+    def __init__(self, node, name: str, on_clock=None):
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.name = name
+        self._on_clock_callback = on_clock
         self._publisher = node.create_publisher(Header, '/clock_ack', reliable)
         self._lock = threading.Lock()
         self._holding = False
@@ -505,6 +507,8 @@ class ClockAnswerer:
         node.create_subscription(Clock, '/clock', self._on_clock, reliable)
 
     def _on_clock(self, msg: Clock):
+        if self._on_clock_callback is not None:
+            self._on_clock_callback(msg.clock.sec * 10 ** 9 + msg.clock.nanosec)
         with self._lock:
             self._held.append(msg.clock)
             if not self._holding:
@@ -594,7 +598,7 @@ class TestNode:
                 time.sleep(max(0.0, step_s / real_time_factor - (time.monotonic() - published)))
         threading.Thread(target=run, daemon=True).start()
 
-    def answer_clock(self, name: str) -> 'ClockAnswerer':
+    def answer_clock(self, name: str, on_clock=None) -> 'ClockAnswerer':
         """
         Take part in a simulator's lockstep as name: answer each /clock on /clock_ack.
 
@@ -602,8 +606,9 @@ class TestNode:
         /clock have been handled (callbacks of subscriptions made before this one run
         first in a round of the executor), so a test that commands the robot from what it
         receives is waited for and cannot fall behind simulated time on a loaded machine.
+        on_clock: see ClockAnswerer.
         """
-        return ClockAnswerer(self.node, name)
+        return ClockAnswerer(self.node, name, on_clock)
 
     def wait_sim(self, sim_seconds: float, timeout: float = 60.0):
         """Wait until simulated time (clock_ns) has advanced by sim_seconds."""

@@ -12,11 +12,19 @@ docs/architecture.md ("The command chain"). The runner must bring the node back,
 the robot must drive again through the restarted node (the next round starts only
 when it does). Each node's stop time is printed.
 
+The simulation runs in lockstep at max speed, and the test takes part in it
+(TestNode.answer_clock): its drive command goes out at every /clock, so simulated time
+waits for the test as for every node, and a busy machine slows the test down instead of
+changing what the chain sees. At each kill the test tells the simulator the process is
+down (``simulator/process_down``, as the scenario runner's node_killed fault does), so
+simulated time runs on without it (at real time at most) while the launch runner
+restarts it 1 s of wall time later: the chain's watchdogs see the silence a robot's
+would. hardware_interface down takes the board down with it (nothing commands it).
+
 A kill whose node is back (restarted) before STOP_WITHIN_S of simulated time has passed,
-with the robot still moving, did not test the budget: the simulator had stalled (CI once
-saw "Simulation fell 1.00 s behind" right after killing velocity_controller, which came
-back 0.15 s of simulated time after the kill and drove on). That node is killed again,
-up to KILLS_PER_NODE times.
+with the robot still moving, did not test the budget (a machine so loaded that the
+restart took less simulated time than that). That node is killed again, up to
+KILLS_PER_NODE times.
 """
 
 import math
@@ -24,11 +32,14 @@ import os
 import signal
 import time
 
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from robot_simulation.lockstep import PROCESS_DOWN_TOPIC
+from std_msgs.msg import String
 
-#: alone: the stop budget is timed on a wall-clock simulator (see REAL_TIME_FACTOR).
-pytestmark = [pytest.mark.integration, pytest.mark.alone]
+pytestmark = pytest.mark.integration
 
 #: Every node that a command passes through, from the mux to the serial line.
 CHAIN = ('twist_mux', 'collision_monitor', 'zone_guard', 'motor_controller',
@@ -37,12 +48,6 @@ CHAIN = ('twist_mux', 'collision_monitor', 'zone_guard', 'motor_controller',
 STOP_WITHIN_S = 0.5
 STOPPED_M_S = 0.01
 DRIVE_M_S = 0.15
-#: Simulated seconds per wall second. Not lockstep: there simulated time waits for the
-#: killed process (lockstep_timeout_s), so the runner's restart 1 s (wall) later brings
-#: it back before any simulated time has passed and nothing has to stop. Half speed
-#: instead: a process stays dead for 1 s of wall time plus its start-up (over 0.5 s
-#: simulated), and a busy machine's delays count half against the 0.5 s.
-REAL_TIME_FACTOR = 0.5
 #: Kills of one node at most, when the node is back before the budget has run out.
 KILLS_PER_NODE = 3
 
@@ -58,7 +63,24 @@ def speed_m_s(msg: Odometry) -> float:
     return math.hypot(twist.linear.x, twist.linear.y)
 
 
-def kill_and_time_the_stop(system, truth, label: str, start: int):
+class Drive:
+    """The test's twist on cmd_vel_scenario, sent at every /clock (in the lockstep)."""
+
+    def __init__(self, test_node):
+        self.twist = (0.0, 0.0, 0.0)
+        self.publisher = test_node.node.create_publisher(Twist, 'cmd_vel_scenario', 10)
+        self.down_publisher = test_node.node.create_publisher(
+            String, PROCESS_DOWN_TOPIC, QoSProfile(depth=10,
+                                                   reliability=ReliabilityPolicy.RELIABLE))
+        test_node.answer_clock('chain_fault_test', self.on_clock)
+
+    def on_clock(self, clock_ns: int) -> None:
+        msg = Twist()
+        msg.linear.x, msg.linear.y, msg.angular.z = self.twist
+        self.publisher.publish(msg)
+
+
+def kill_and_time_the_stop(system, truth, drive: Drive, label: str, start: int):
     """
     Kill label's process; return the simulated seconds until the robot stopped.
 
@@ -70,6 +92,7 @@ def kill_and_time_the_stop(system, truth, label: str, start: int):
     killed_at_s = stamp_s(truth.latest())
     killed_wall = time.monotonic()
     os.kill(pid, signal.SIGKILL)
+    drive.down_publisher.publish(String(data=label))
     restart = rf'\[runner\] restarted {label} \(start {start}, pid \d+\)'
     restarted_wall, _ = system.wait_for_line_at(restart, timeout=30)
     back_after_s = stamp_s(truth.latest(received_by=restarted_wall)) - killed_at_s
@@ -89,7 +112,7 @@ def kill_and_time_the_stop(system, truth, label: str, start: int):
 def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
         start_system, test_node, tmp_path):
     system = start_system('mecanum_bringup', 'simulation.launch.yaml', 'world:=apartment',
-                          f'real_time_factor:={REAL_TIME_FACTOR}',
+                          'lockstep:=true', 'real_time_factor:=0',
                           f'board_port:={tmp_path / "ttySIM"}',
                           f'estop_latch_file:={tmp_path / "estop"}')
     system.wait_for_line(r'\[hardware_interface\].*Connected to the board', timeout=60)
@@ -98,9 +121,7 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
         system.node_pid(label)
     truth = test_node.record(Odometry, 'ground_truth/odom')
     # The scenario's command source, through the whole chain.
-    drive = test_node.twist_repeater('cmd_vel_scenario')
-    drive.twist = (0.0, 0.0, 0.0)
-    drive.start()
+    drive = Drive(test_node)
     stop_times = {}
     try:
         for number, label in enumerate(CHAIN):
@@ -108,7 +129,7 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
             drive.twist = (DRIVE_M_S if number % 2 == 0 else -DRIVE_M_S, 0.0, 0.0)
             for kill in range(1, KILLS_PER_NODE + 1):
                 truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
-                stop_s = kill_and_time_the_stop(system, truth, label, start=kill + 1)
+                stop_s = kill_and_time_the_stop(system, truth, drive, label, start=kill + 1)
                 if stop_s is not None:
                     break
                 print(f'{label}: back before the robot had to stop (the simulator stalled); '
@@ -121,7 +142,7 @@ def test_killing_any_chain_node_stops_the_robot_within_half_a_second(
         drive.twist = (DRIVE_M_S, 0.0, 0.0)
         truth.wait_for_new(lambda m: speed_m_s(m) >= DRIVE_M_S - 0.01, timeout=60)
     finally:
-        drive.stop()
+        drive.twist = (0.0, 0.0, 0.0)
     print('stop times (simulated s): ' + ', '.join(
         f'{label} {seconds:.2f}' for label, seconds in stop_times.items()))
     slow = {label: round(seconds, 2) for label, seconds in stop_times.items()

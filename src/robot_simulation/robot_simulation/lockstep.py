@@ -26,7 +26,8 @@ while any part is gone, or before the board has answered at all (the stack is st
 starting), the simulation runs at real time at most. A gone part that answers again
 takes part again. A part known to be down (:meth:`Lockstep.down`: the scenario runner
 froze or killed it) is gone at once: a dead or stopped process holds no simulated time
-back, so the stack's watchdogs see its silence as a real robot's would. The board
+back, so the stack's watchdogs see its silence as a real robot's would; until it answers
+again the board is not waited for either (the commands may stop with it). The board
 silent for ``give_up_s`` of wall time ends the run with :class:`LockstepError`, naming
 it.
 
@@ -78,6 +79,7 @@ class _Part:
     answered_wall_s: float = -math.inf
     alive_wall_s: float = -math.inf
     gone: bool = False
+    down: bool = False     # said down (Lockstep.down), until it answers again
 
 
 class Lockstep:
@@ -129,7 +131,7 @@ class Lockstep:
             self._events.append(f'lockstep: {name} takes part')
         elif part.gone:
             self._events.append(f'lockstep: {name} answers again')
-        part.gone = False
+        part.gone = part.down = False
         part.answered_sim_s = max(part.answered_sim_s, sim_s)
         part.answered_wall_s = wall_s
 
@@ -144,14 +146,20 @@ class Lockstep:
         Take part name as gone now: its process was stopped or killed (why says how).
 
         Simulated time no longer waits for it (at real time at most, as for any gone
-        part) until it answers again. A name never heard is ignored.
+        part) until it answers again. Nor for the board meanwhile: its commands come
+        through the stack (velocity_controller's efforts, sent by hardware_interface),
+        which may stop until time has run on (hardware_interface's keep-alive is timed
+        on simulated time; the board's watchdog too, as on a robot); it is still
+        listened to. A name never heard is ignored.
         """
         part = self._participants.get(name)
         if part is None or part.gone:
             return
-        part.gone = True
+        part.gone = part.down = True
         self._events.append(f'lockstep: {name} is down ({why}): going on without it, at '
                             'real time at most')
+        if self._board_engaged and not self._board.gone:
+            self._events.append(f'lockstep: not waiting for {BOARD} while {name} is down')
 
     # --- outputs -----------------------------------------------------------------------
     def waiting_for(self, wall_s: float) -> List[str]:
@@ -165,7 +173,7 @@ class Lockstep:
         missing = []
         if self._board_engaged:
             board = self._board
-            if board.gone:
+            if board.gone or self._board_excused():
                 silent_s = wall_s - board.answered_wall_s
                 if silent_s >= self.config.give_up_s:
                     raise LockstepError(
@@ -200,6 +208,10 @@ class Lockstep:
         """Tell whether time runs unlocked: no board answer yet, or a part gone."""
         return (not self._board_engaged or self._board.gone
                 or any(part.gone for part in self._participants.values()))
+
+    def _board_excused(self) -> bool:
+        """Tell whether a part said down is still gone (the board is not awaited)."""
+        return any(part.down for part in self._participants.values())
 
     @property
     def participants(self) -> List[str]:

@@ -67,7 +67,8 @@ CLOCK_RESEND_S of wall time is published again: a process restarted under the sa
 ``lockstep_give_up_s``; the others take the same time again and answer again. A
 process named on ``simulator/process_down`` (std_msgs/String: its /clock_ack name; the
 scenario runner sends it as it freezes or kills the process) is waited for no longer at
-once, so that simulated time runs on while it is down, as wall time would on a robot.
+once, so that simulated time runs on while it is down, as wall time would on a robot
+(the board neither, until that process answers again: the commands may stop with it).
 ``real_time_factor`` is then an upper bound (0: as fast as the stack answers). A part
 silent for ``lockstep_timeout_s`` wall seconds (10.0; a killed or frozen process) is
 waited for no longer, and time runs at real time at most until it answers again; no

@@ -138,8 +138,9 @@ def test_a_part_said_down_is_not_waited_for_at_once_and_takes_part_again_when_it
     gate.down('twist_mux', 'killed')             # long before the 2 s timeout
     assert gate.waiting_for(1.002) == []
     assert gate.free_running
-    assert gate.events() == ['lockstep: twist_mux is down (killed): going on without it, '
-                             'at real time at most']
+    assert gate.events() == [
+        'lockstep: twist_mux is down (killed): going on without it, at real time at most',
+        f'lockstep: not waiting for {BOARD} while twist_mux is down']
     gate.down('twist_mux', 'killed')             # already gone: nothing new
     gate.down('never_heard', 'killed')           # not a participant: ignored
     assert gate.events() == [] and gate.participants == ['twist_mux']
@@ -149,3 +150,54 @@ def test_a_part_said_down_is_not_waited_for_at_once_and_takes_part_again_when_it
     gate.ack('twist_mux', 0.04, wall_s=1.2)
     assert gate.events() == ['lockstep: twist_mux answers again']
     assert not gate.free_running
+
+
+def test_while_a_part_said_down_is_gone_the_board_is_not_waited_for():
+    """
+    A killed velocity_controller or hardware_interface: nothing may command the board.
+
+    hardware_interface's keep-alive runs on simulated time, so waiting for the board
+    would hold time until the lockstep timeout (10 s of wall time) at such a kill; a
+    late command of the killed node must not bring that wait back (the test saw it).
+    """
+    gate = started(timeout_s=10.0, give_up_s=30.0)
+    gate.ack('velocity_controller', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    assert gate.waiting_for(1.001) == [BOARD, 'velocity_controller']
+    gate.events()
+    gate.down('velocity_controller', 'killed')   # long before the 10 s timeout
+    assert gate.waiting_for(1.002) == []
+    assert gate.free_running
+    assert gate.events() == [
+        'lockstep: velocity_controller is down (killed): going on without it, at real time '
+        'at most',
+        f'lockstep: not waiting for {BOARD} while velocity_controller is down']
+    # A command that was on its way: the next /clock still does not wait for the board.
+    gate.board_command(wall_s=1.1)
+    gate.published(0.04, wall_s=1.2)
+    assert gate.waiting_for(1.201) == []
+    # Down and silent for give_up_s: the stack is gone for good.
+    with pytest.raises(LockstepError, match='has not answered for 30 s'):
+        gate.waiting_for(31.2)
+
+
+def test_the_board_is_waited_for_again_once_the_part_said_down_answers():
+    gate = started(timeout_s=10.0)
+    gate.ack('hardware_interface', 0.0, wall_s=0.0)
+    gate.published(0.02, wall_s=1.0)
+    gate.down('hardware_interface', 'killed')
+    assert gate.waiting_for(1.001) == []
+    gate.published(0.04, wall_s=2.0)
+    gate.board_command(wall_s=2.1)               # the respawned hardware_interface
+    gate.ack('hardware_interface', 0.04, wall_s=2.1)
+    assert not gate.free_running
+    gate.published(0.06, wall_s=2.2)
+    assert gate.waiting_for(2.201) == [BOARD, 'hardware_interface']
+    # Before the board ever answered (the stack starting), nothing is said of it.
+    fresh = Lockstep(LockstepConfig(timeout_s=10.0))
+    fresh.ack('hardware_interface', 0.0, wall_s=0.0)
+    fresh.down('hardware_interface', 'killed')
+    assert fresh.events() == [
+        'lockstep: hardware_interface takes part',
+        'lockstep: hardware_interface is down (killed): going on without it, at real time '
+        'at most']
