@@ -212,3 +212,58 @@ def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tm
     assert 'Current thread' in stderr
     assert 'in on_timer' in stderr
 
+
+
+LEAVING_NODE = textwrap.dedent('''
+    import atexit
+    import sys
+    import threading
+    import time
+
+    from mecanum_control.node_main import run_node
+    from rclpy.node import Node
+
+
+    class Leaving(Node):
+        def __init__(self, **node_options):
+            super().__init__('leaving', **node_options)
+            self.create_timer(0.05, lambda: print('spinning', flush=True))
+
+        def close(self):
+            def write_late():
+                time.sleep(0.3)
+                with open(sys.argv[1], 'w') as handle:
+                    handle.write('written')
+            threading.Thread(target=write_late).start()     # not a daemon
+            atexit.register(lambda: print('exit function ran'))
+            print('unflushed line', end='')
+
+
+    sys.exit(run_node(Leaving, 'leaving'))
+''')
+
+
+def test_a_node_process_leaves_without_teardown_but_loses_nothing(ros_env, tmp_path):
+    """
+    node_main.leave_process: the process ends without the interpreter's teardown.
+
+    What the teardown would have done that matters still happens: a thread that is not a
+    daemon is joined, exit functions run, buffered output is flushed, and the exit code
+    is 0.
+    """
+    script = tmp_path / 'leaving_node.py'
+    script.write_text(LEAVING_NODE)
+    late_file = tmp_path / 'late.txt'
+    process = subprocess.Popen([sys.executable, str(script), str(late_file)], env=ros_env,
+                               text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'spinning'
+        process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=15)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr
+    assert late_file.read_text() == 'written'
+    assert 'unflushed lineexit function ran' in stdout
+    assert 'Traceback' not in stderr

@@ -27,11 +27,13 @@ import importlib
 from importlib import metadata
 import inspect
 import json
+import os
 import sys
 from typing import Dict, List, Optional
 
 from mecanum_control.node_main import (
-    close_node, raise_keyboard_interrupt_on_signals, spin_waking)
+    close_node, leave_process, raise_keyboard_interrupt_on_signals, spin_waking,
+    TEARDOWN_VARIABLE)
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -93,7 +95,7 @@ def parse_spec(text: str) -> List[Dict]:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    """Run the container until Ctrl-C or SIGTERM; return the exit code."""
+    """Run the container until Ctrl-C or SIGTERM; return an error's exit code, else leave (0)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     own = rclpy.utilities.remove_ros_args(['node_container', *argv])[1:]
     logger = rclpy.logging.get_logger('node_container')
@@ -125,6 +127,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         for node in reversed(nodes):
             close_node(node)
         rclpy.try_shutdown()
+    if os.environ.get(TEARDOWN_VARIABLE, '') != 'full':
+        leave_process(0)   # without the interpreter's teardown (node_main.leave_process)
     return 0
 
 
