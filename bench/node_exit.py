@@ -31,7 +31,8 @@ NODES = [
         '--params-file',
         str(REPO / 'install/mecanum_safety/share/mecanum_safety/config/collision_monitor.yaml')]),
     ('mecanum_safety', 'twist_mux', [
-        '--params-file', str(REPO / 'install/mecanum_safety/share/mecanum_safety/config/twist_mux.yaml')]),
+        '--params-file',
+        str(REPO / 'install/mecanum_safety/share/mecanum_safety/config/twist_mux.yaml')]),
 ]
 RUN_BEFORE_SIGINT_S = 3.0
 WAYS = ('full teardown', 'leave_process')
@@ -83,7 +84,7 @@ def main() -> int:
     print(f'{options.trials} trials each, interleaved; medians (max)')
     print('| node | way | exit wall s | CPU s from SIGINT |')
     print('|---|---|---|---|')
-    totals = {way: 0.0 for way in WAYS}
+    totals = dict.fromkeys(WAYS, 0.0)
     for name, results in rows:
         for way in WAYS:
             walls = [w for w, _ in results[way]]
