@@ -48,14 +48,19 @@ class Process(OutputProcess):
         interrupt_group(self.process)
 
 
+def simulator_alone(ros_env, port, timeout_s: float, give_up_s: float) -> Process:
+    """Start the simulator alone in lockstep at max, its board on port (a pty)."""
+    return Process([sys.executable, '-m', 'robot_simulation.simulator_node', '--ros-args',
+                    '-p', 'world:=apartment', '-p', f'board_port:={port}',
+                    '-p', 'lockstep:=true', '-p', 'real_time_factor:=0.0',
+                    '-p', f'lockstep_timeout_s:={timeout_s}',
+                    '-p', f'lockstep_give_up_s:={give_up_s}'], ros_env)
+
+
 def test_the_simulator_waits_for_the_board_and_names_it_when_it_stays_silent(
         ros_env, test_node, tmp_path):
     port = tmp_path / 'ttySIM'
-    sim = Process([sys.executable, '-m', 'robot_simulation.simulator_node', '--ros-args',
-                   '-p', 'world:=apartment', '-p', f'board_port:={port}',
-                   '-p', 'lockstep:=true', '-p', 'real_time_factor:=0.0',
-                   '-p', 'lockstep_timeout_s:=1.0', '-p', 'lockstep_give_up_s:=4.0'],
-                  ros_env)
+    sim = simulator_alone(ros_env, port, timeout_s=1.0, give_up_s=4.0)
     try:
         clock = test_node.record(Clock, '/clock')
         # Before the board answers, time runs (at real time at most): the stack starts.
@@ -97,11 +102,7 @@ def test_a_test_node_that_answers_the_clock_holds_simulated_time(ros_env, test_n
     behind simulated time at max speed, the robot overshot a corner into the collision
     monitor's stop zone and the route never ended.
     """
-    sim = Process([sys.executable, '-m', 'robot_simulation.simulator_node', '--ros-args',
-                   '-p', 'world:=apartment', '-p', f'board_port:={tmp_path / "ttySIM"}',
-                   '-p', 'lockstep:=true', '-p', 'real_time_factor:=0.0',
-                   '-p', 'lockstep_timeout_s:=2.0', '-p', 'lockstep_give_up_s:=60.0'],
-                  ros_env)
+    sim = simulator_alone(ros_env, tmp_path / 'ttySIM', timeout_s=2.0, give_up_s=60.0)
     try:
         clock = test_node.record(Clock, '/clock')
         answers = test_node.answer_clock('route_driver')
