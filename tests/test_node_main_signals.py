@@ -216,6 +216,7 @@ def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tm
 
 LEAVING_NODE = textwrap.dedent('''
     import atexit
+    import concurrent.futures
     import sys
     import threading
     import time
@@ -235,6 +236,9 @@ LEAVING_NODE = textwrap.dedent('''
                 with open(sys.argv[1], 'w') as handle:
                     handle.write('written')
             threading.Thread(target=write_late).start()     # not a daemon
+            # A thread pool's idle worker (not a daemon either): told to end at exit.
+            self.pool = concurrent.futures.ThreadPoolExecutor(1)
+            self.pool.submit(lambda: None).result()
             atexit.register(lambda: print('exit function ran'))
             print('unflushed line', end='')
 
@@ -248,8 +252,8 @@ def test_a_node_process_leaves_without_teardown_but_loses_nothing(ros_env, tmp_p
     node_main.leave_process: the process ends without the interpreter's teardown.
 
     What the teardown would have done that matters still happens: a thread that is not a
-    daemon is joined, exit functions run, buffered output is flushed, and the exit code
-    is 0.
+    daemon is joined (an idle thread pool's worker told to end first, or the process would
+    hang), exit functions run, buffered output is flushed, and the exit code is 0.
     """
     script = tmp_path / 'leaving_node.py'
     script.write_text(LEAVING_NODE)
