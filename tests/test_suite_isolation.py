@@ -40,7 +40,10 @@ def test_a_tests_leftover_processes_die_even_when_they_ignore_ctrl_c(marked_env)
                                stdout=subprocess.PIPE, text=True, start_new_session=True)
     try:
         assert process.stdout.readline().strip() == 'up'
-        left = marked_env.leftovers()
+        # Both, the child too (CI once listed the parent alone at first: wait for it).
+        deadline = time.monotonic() + 10.0
+        while len(left := marked_env.leftovers()) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert process.pid in left and len(left) == 2, left
         assert sorted(marked_env.kill_leftovers()) == sorted(left)
         assert process.wait(timeout=10) == -signal.SIGKILL
