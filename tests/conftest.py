@@ -468,6 +468,17 @@ class ClockAcks:
         with self._condition:
             self._lockstep.alive(msg.frame_id, time.monotonic())
 
+    def wait_for_participant(self, name_prefix: str, timeout: float = 30.0) -> str:
+        """Wait until a process whose /clock_ack name starts with name_prefix answered."""
+        def found():
+            return next((name for name in self._lockstep.participants
+                         if name.startswith(name_prefix)), None)
+        with self._condition:
+            assert self._condition.wait_for(found, timeout), (
+                f'no /clock_ack from {name_prefix!r} within {timeout} s (answered: '
+                f'{self._lockstep.participants})')
+            return found()
+
     def wait_for(self, clock_ns: int, context, publish_again=None):
         """
         Wait until every live participant has answered clock_ns (or went silent).
@@ -571,7 +582,7 @@ class TestNode:
         """
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         publisher = self.node.create_publisher(Clock, '/clock', reliable)
-        acks = ClockAcks()
+        acks = self.clock_acks = ClockAcks()
         if not follow_wall_clock:
             self.node.create_subscription(Header, '/clock_ack', acks.on_ack, reliable)
             self.node.create_subscription(Header, '/clock_alive', acks.on_alive, reliable)

@@ -83,6 +83,10 @@ def test_a_stalled_process_holds_the_test_clock_back(start_system, test_node, co
     while command_pub.get_subscription_count() == 0:
         assert time.monotonic() < deadline, 'robot_controller does not subscribe'
         time.sleep(0.05)
+    # The clock waits for the container only once it has answered a /clock (it answers
+    # once it has discovered the test's /clock_ack subscription): before, a stall went
+    # unnoticed, time ran on and the motion timed out (0.096 m for 0.3 m, CI here).
+    test_node.clock_acks.wait_for_participant('robot_simulation')
     command_pub.publish(String(data='strafe left 0.3 m at 0.3 m/s'))
     status.wait_for(lambda m: m.data.startswith('accepted: strafe left'))
     os.kill(pid, signal.SIGSTOP)

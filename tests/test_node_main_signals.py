@@ -213,7 +213,6 @@ def test_sigquit_prints_where_a_node_is_stuck_even_inside_a_callback(ros_env, tm
     assert 'in on_timer' in stderr
 
 
-
 LEAVING_NODE = textwrap.dedent('''
     import atexit
     import concurrent.futures
