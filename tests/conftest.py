@@ -103,6 +103,11 @@ class OutputProcess:
         """Wait until an output line matches pattern; return the match."""
         return self.wait_for_line_at(pattern, timeout)[1]
 
+    def lines_since(self, start: float) -> list:
+        """Return (arrival time s, line) of the lines that arrived at or after start."""
+        with self._lock:
+            return [(when, line) for when, line in self.lines if when >= start]
+
 
 class TerminalProcess:
     """A command as typed in a shell: a process group of its own, a pty as stdin."""
@@ -325,6 +330,11 @@ class Recorder:
         """Messages received at or after monotonic time start."""
         with self._lock:
             return [msg for when, msg in self.messages if when >= start]
+
+    def received_since(self, start: float) -> list:
+        """(monotonic arrival time s, message) of the messages received since start."""
+        with self._lock:
+            return [(when, msg) for when, msg in self.messages if when >= start]
 
     def wait_for_new(self, predicate, timeout=20.0):
         """Like wait_for, but only among messages received from now on."""
