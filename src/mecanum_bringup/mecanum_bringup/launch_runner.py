@@ -15,12 +15,25 @@ when it exits (the runner then exits with that node's code). On Ctrl-C or
 SIGTERM every node gets SIGINT, then SIGTERM, then SIGKILL, so the system is
 down within about five seconds, and children die with the runner even if it is
 killed (PR_SET_PDEATHSIG), leaving no orphan processes.
+
+With ``--reloadable`` (the scenario and sweep runners' warm stacks) the runner takes
+commands on standard input, one line each: ``unload`` (every process closes its nodes
+and keeps running, idle; ``[runner] unloaded``) and ``load {"launch_file": PATH,
+"compose": BOOL, "composition": PATH or null}`` (every process makes its nodes anew
+from that system's command lines; ``[runner] loaded``). A system whose processes differ
+from the running ones (other executables, environment, prefix, respawn) is refused
+(``[runner] reload refused: WHY``), as is a load while a process has been restarted;
+a process that does not answer is reported (``[runner] reload failed: WHY``). Either
+way the caller stops the runner and starts the new system cold. See
+:mod:`mecanum_control.node_reload` for the processes' side.
 """
 
 import argparse
 import ctypes
+import json
 import os
 from pathlib import Path
+import queue
 import signal
 import subprocess
 import sys
@@ -33,6 +46,7 @@ from mecanum_bringup.isolation import isolated_environment, lease_domain_id
 from mecanum_bringup.system_description import (
     default_find_package_share, description_file, load_system, NodeProcess,
     parse_launch_arguments, System, SystemDescriptionError)
+from mecanum_control import node_reload
 
 _PR_SET_PDEATHSIG = 1
 # Loaded here, not in the forked child: dynamic loading between fork and exec can
@@ -74,14 +88,47 @@ class ManagedNode:
         self.starts = 0
         self.restart_at: Optional[float] = None
         self.reader: Optional[threading.Thread] = None
+        #: The process's reload answers (node_reload's lines), in order.
+        self.answers: 'queue.Queue[str]' = queue.Queue()
+
+
+#: What must be equal for a running process to take another system's node by a reload.
+RELOAD_SAME = ('package', 'executable', 'name', 'namespace', 'env', 'launch_prefix',
+               'respawn', 'respawn_delay_s', 'shutdown_on_exit')
+#: Wall seconds a process may take to answer an unload, and a load.
+UNLOAD_TIMEOUT_S = 20.0
+LOAD_TIMEOUT_S = 60.0
+
+
+def reload_refusal(running: List[NodeProcess], new: List[NodeProcess]) -> Optional[str]:
+    """
+    Say why the running processes cannot take the new system's nodes (None: they can).
+
+    The processes must be the same, in the same order: only their arguments, parameters
+    and remappings (a container's node list among them) may differ.
+    """
+    if [n.label for n in running] != [n.label for n in new]:
+        return (f'other processes ({", ".join(n.label for n in new)} instead of '
+                f'{", ".join(n.label for n in running)})')
+    for old, spec in zip(running, new):
+        for name in RELOAD_SAME:
+            if getattr(old, name) != getattr(spec, name):
+                return f'{spec.label}: {name} differs ({getattr(spec, name)!r})'
+    return None
 
 
 class Supervisor:
     """Starts the nodes of a System and keeps them running until shutdown."""
 
     def __init__(self, system: System, environ: Mapping[str, str], out: TextIO = sys.stdout,
-                 sigint_timeout_s: float = 3.0, sigterm_timeout_s: float = 2.0):
+                 sigint_timeout_s: float = 3.0, sigterm_timeout_s: float = 2.0,
+                 reloadable: bool = False):
         self._out = out
+        self.reloadable = reloadable
+        self.system = system
+        #: Reload commands (node_reload's words: ('unload', None), ('load', document)).
+        self.commands: 'queue.Queue[tuple]' = queue.Queue()
+        self._unloaded = False
         self._out_lock = threading.Lock()
         self._sigint_timeout_s = sigint_timeout_s
         self._sigterm_timeout_s = sigterm_timeout_s
@@ -90,6 +137,9 @@ class Supervisor:
         base_env = dict(environ)
         base_env.setdefault('PYTHONUNBUFFERED', '1')
         base_env.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
+        base_env.pop(node_reload.RELOAD_VARIABLE, None)
+        if reloadable:
+            base_env[node_reload.RELOAD_VARIABLE] = 'stdin'
         if getattr(out, 'isatty', lambda: False)():
             base_env.setdefault('RCUTILS_COLORIZED_OUTPUT', '1')
         self.nodes: List[ManagedNode] = []
@@ -97,6 +147,7 @@ class Supervisor:
             executable = find_executable(spec.package, spec.executable, base_env)
             command = [*spec.launch_prefix, str(executable), *spec.arguments, *spec.ros_args()]
             self.nodes.append(ManagedNode(spec, command, dict(base_env, **spec.env)))
+        self._base_env = base_env
 
     def say(self, label: str, text: str) -> None:
         """Print one line with a ``[label]`` prefix, whole even with many writers."""
@@ -117,8 +168,10 @@ class Supervisor:
 
     def _start(self, node: ManagedNode) -> None:
         node.process = subprocess.Popen(
-            node.command, env=node.env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=die_with_parent)
+            node.command, env=node.env,
+            stdin=subprocess.PIPE if self.reloadable else subprocess.DEVNULL,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True,
+            preexec_fn=die_with_parent)
         node.starts += 1
         node.restart_at = None
         verb = 'started' if node.starts == 1 else 'restarted'
@@ -131,7 +184,10 @@ class Supervisor:
 
     def _forward_output(self, node: ManagedNode, process: subprocess.Popen) -> None:
         for raw in iter(process.stdout.readline, b''):
-            self.say(node.spec.label, raw.decode(errors='replace').rstrip('\n'))
+            line = raw.decode(errors='replace').rstrip('\n')
+            if self.reloadable and line.startswith('reload: '):
+                node.answers.put(line)
+            self.say(node.spec.label, line)
         process.stdout.close()
 
     def _check(self, node: ManagedNode, now: float) -> None:
@@ -162,10 +218,126 @@ class Supervisor:
                 now = time.monotonic()
                 for node in self.nodes:
                     self._check(node, now)
-                time.sleep(0.05)
+                try:
+                    word, document = self.commands.get(timeout=0.05)
+                except queue.Empty:
+                    continue
+                if word == 'unload':
+                    self.unload()
+                else:
+                    self.load(document)
         finally:
             self.stop_all()
         return self._exit_code
+
+    # --- reloads (warm stacks) ---------------------------------------------------------
+
+    def read_commands(self, stream: TextIO) -> None:
+        """Queue the reload commands of stream (a daemon thread); its end stops the system."""
+        def read() -> None:
+            for line in stream:
+                word, _, rest = line.strip().partition(' ')
+                if word == 'unload' and not rest:
+                    self.commands.put(('unload', None))
+                elif word == 'load':
+                    try:
+                        self.commands.put(('load', json.loads(rest)))
+                    except json.JSONDecodeError as error:
+                        self.say('runner', f'reload failed: the load is not JSON: {error}')
+                elif word:
+                    self.say('runner', f'reload failed: unknown command {line.strip()!r}')
+            self.request_shutdown('standard input closed')
+        threading.Thread(target=read, name='reload_commands', daemon=True).start()
+
+    def _tell(self, node: ManagedNode, text: str) -> bool:
+        try:
+            node.process.stdin.write(text.encode())
+            node.process.stdin.flush()
+            return True
+        except (OSError, ValueError, AttributeError):
+            return False
+
+    def _await(self, nodes: List[ManagedNode], expected: str, timeout_s: float) -> Optional[str]:
+        """Wait until every node answered expected; return what went wrong (None: nothing)."""
+        deadline = time.monotonic() + timeout_s
+        for node in nodes:
+            while True:
+                if node.process is None or node.process.poll() is not None:
+                    return f'{node.spec.label} exited'
+                try:
+                    answer = node.answers.get(timeout=0.05)
+                except queue.Empty:
+                    if time.monotonic() > deadline:
+                        return f'{node.spec.label} did not answer within {timeout_s:g} s'
+                    continue
+                if answer == expected:
+                    break
+                if answer.startswith(node_reload.FAILED_PREFIX):
+                    return f'{node.spec.label}: {answer[len(node_reload.FAILED_PREFIX):]}'
+        return None
+
+    def unload(self) -> bool:
+        """Have every process close its nodes; say 'unloaded' or why not."""
+        problem = None
+        if not self.reloadable:
+            problem = 'the runner was not started with --reloadable'
+        elif any(n.process is None or n.process.poll() is not None for n in self.nodes):
+            problem = 'a process is not running'
+        if problem is None:
+            for node in self.nodes:
+                while not node.answers.empty():
+                    node.answers.get_nowait()
+                if not self._tell(node, 'unload\n'):
+                    problem = f'{node.spec.label} takes no commands'
+                    break
+        if problem is None:
+            problem = self._await(self.nodes, node_reload.UNLOADED_LINE, UNLOAD_TIMEOUT_S)
+        if problem is not None:
+            self.say('runner', f'reload failed: {problem}')
+            return False
+        self._unloaded = True
+        self.say('runner', 'unloaded: every process is idle, without nodes')
+        return True
+
+    def load(self, document) -> bool:
+        """Make every process's nodes anew from the system document names; say 'loaded'."""
+        try:
+            if not isinstance(document, dict) or 'launch_file' not in document:
+                raise SystemDescriptionError('expected {"launch_file": ..., "compose": ..., '
+                                             '"composition": ...}')
+            path = Path(document['launch_file'])
+            system = load_system(path, {})
+            if document.get('compose'):
+                composition = document.get('composition')
+                system = compose(system, load_composition(
+                    Path(composition) if composition else default_composition_file()))
+            commands = [[*spec.arguments, *spec.ros_args()] for spec in system.nodes]
+        except (SystemDescriptionError, LookupError, OSError) as error:
+            self.say('runner', f'reload refused: {error}')
+            return False
+        problem = reload_refusal([n.spec for n in self.nodes], system.nodes)
+        if problem is None and not self._unloaded:
+            problem = 'the processes were not unloaded first'
+        if problem is None and any(n.starts != 1 for n in self.nodes):
+            problem = 'a process was restarted (' + ', '.join(
+                n.spec.label for n in self.nodes if n.starts != 1) + ')'
+        if problem is not None:
+            self.say('runner', f'reload refused: {problem}')
+            return False
+        for node, spec, arguments in zip(self.nodes, system.nodes, commands):
+            executable = node.command[len(spec.launch_prefix)]   # the prefix is the same
+            node.spec, node.command = spec, [*spec.launch_prefix, executable, *arguments]
+            if not self._tell(node, node_reload.load_command(arguments)):
+                self.say('runner', f'reload failed: {node.spec.label} takes no commands')
+                return False
+        problem = self._await(self.nodes, node_reload.LOADED_LINE, LOAD_TIMEOUT_S)
+        if problem is not None:
+            self.say('runner', f'reload failed: {problem}')
+            return False
+        self.system = system
+        self._unloaded = False
+        self.say('runner', f'loaded {path.name}: ' + ', '.join(n.spec.label for n in self.nodes))
+        return True
 
     def stop_all(self) -> None:
         """Stop every node: SIGINT, then SIGTERM, then SIGKILL, each to its process group."""
@@ -256,6 +428,9 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help='print the command of every node, then exit')
     parser.add_argument('--compose', action='store_true',
                         help='run groups of nodes in one process each (node_container)')
+    parser.add_argument('--reloadable', action='store_true',
+                        help='take unload / load commands on standard input (warm stacks; '
+                             'see the module docstring)')
     parser.add_argument('--composition', type=Path, metavar='FILE',
                         help='the groups for --compose (default: mecanum_bringup '
                              'config/composition.yaml)')
@@ -280,7 +455,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     lease = lease_domain_id() if options.isolated else None
     environ = isolated_environment(os.environ, lease.domain_id if lease else None)
     try:
-        supervisor = Supervisor(system, environ)
+        supervisor = Supervisor(system, environ, reloadable=options.reloadable)
     except FileNotFoundError as error:
         print(f'[runner] error: {error}', file=sys.stderr)
         return 2
@@ -302,6 +477,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     # SIGINT blocked, and the runner never saw the Ctrl-C that ends a scenario (it was
     # killed 20 s later, its nodes with it). The nodes inherit the mask set here.
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    if options.reloadable:
+        supervisor.read_commands(sys.stdin)
     try:
         return supervisor.run()
     finally:

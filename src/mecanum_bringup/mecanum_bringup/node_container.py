@@ -29,11 +29,13 @@ import inspect
 import json
 import os
 import sys
-from typing import Dict, List, Optional
+import threading
+from typing import Dict, List, Optional, Tuple
 
+from mecanum_control import node_reload
 from mecanum_control.node_main import (
-    close_node, leave_process, raise_keyboard_interrupt_on_signals, spin_waking,
-    TEARDOWN_VARIABLE)
+    close_node, close_watchdog, leave_process, raise_keyboard_interrupt_on_signals,
+    spin_waking, TEARDOWN_VARIABLE)
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -94,33 +96,80 @@ def parse_spec(text: str) -> List[Dict]:
     return nodes
 
 
+def load_specs(argv: List[str]) -> Tuple[List[Dict], List[type]]:
+    """Return the node specifications and classes of the container's arguments."""
+    own = rclpy.utilities.remove_ros_args(['node_container', *argv])[1:]
+    if len(own) != 1:
+        raise CompositionError('usage: node_container NODE_LIST_JSON')
+    specs = parse_spec(own[0])
+    return specs, [node_class(s['package'], s['executable']) for s in specs]
+
+
+def make_nodes(specs: List[Dict], classes: List[type]) -> List[Node]:
+    """
+    Make the nodes, each with its own arguments.
+
+    On a bad parameter: log it (fatal), destroy the nodes made so far and raise
+    CompositionError.
+    """
+    nodes: List[Node] = []
+    for spec, cls in zip(specs, classes):
+        try:
+            nodes.append(cls(cli_args=spec.get('ros_args', []), use_global_arguments=False))
+        except (ValueError, ParameterException) as error:
+            rclpy.logging.get_logger(spec['label']).fatal(f'{error}')
+            for node in reversed(nodes):
+                close_node(node)
+            raise CompositionError(f'{spec["label"]}: {error}') from None
+    return nodes
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the container until Ctrl-C or SIGTERM; return an error's exit code, else leave (0)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    own = rclpy.utilities.remove_ros_args(['node_container', *argv])[1:]
     logger = rclpy.logging.get_logger('node_container')
     try:
-        if len(own) != 1:
-            raise CompositionError('usage: node_container NODE_LIST_JSON')
-        specs = parse_spec(own[0])
-        classes = [node_class(s['package'], s['executable']) for s in specs]
+        specs, classes = load_specs(argv)
     except CompositionError as error:
         logger.fatal(str(error))
         return 2
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     raise_keyboard_interrupt_on_signals()
+    channel = node_reload.reload_channel()
+    until = channel.unload_requested if channel is not None else None
     nodes: List[Node] = []
+    reloading = False
     try:
-        for spec, cls in zip(specs, classes):
+        while True:
             try:
-                nodes.append(cls(cli_args=spec.get('ros_args', []),
-                                 use_global_arguments=False))
-            except (ValueError, ParameterException) as error:
-                rclpy.logging.get_logger(spec['label']).fatal(f'{error}')
+                nodes = make_nodes(specs, classes)
+            except CompositionError as error:
+                if reloading:
+                    node_reload.say(f'{node_reload.FAILED_PREFIX}{error}')
                 return 2
-        logger.info(f'{len(nodes)} nodes in one process: '
-                    + ', '.join(node.get_name() for node in nodes))
-        spin_waking(*nodes)
+            logger.info(f'{len(nodes)} nodes in one process: '
+                        + ', '.join(node.get_name() for node in nodes))
+            if reloading:
+                node_reload.say(node_reload.LOADED_LINE)
+            spin_waking(*nodes, until=until)
+            if until is None or not until.is_set():
+                break
+            # A reload: these nodes go, new ones come from the next load's arguments.
+            with close_watchdog('node_container'):
+                for node in reversed(nodes):
+                    close_node(node)
+            nodes = []
+            node_reload.say(node_reload.UNLOADED_LINE)
+            argv = channel.next_load(threading.Event())
+            if argv is None:
+                break
+            reloading = True
+            try:
+                specs, classes = load_specs(argv)
+            except CompositionError as error:
+                logger.fatal(str(error))
+                node_reload.say(f'{node_reload.FAILED_PREFIX}{error}')
+                return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

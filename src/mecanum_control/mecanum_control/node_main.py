@@ -38,6 +38,7 @@ import threading
 import time
 from typing import Callable, Dict, Iterator, List, NoReturn, Optional, Sequence, Tuple
 
+from mecanum_control import node_reload
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -113,13 +114,24 @@ def raise_keyboard_interrupt_on_signals() -> None:
 
 
 def close_node(node: Node) -> None:
-    """Run the node's ``close()`` if it has one (errors logged, not raised), then destroy it."""
+    """
+    Run the node's ``close()`` if it has one (errors logged, not raised), then destroy it.
+
+    Its waitables (action servers and clients) are destroyed first: rclpy's destroy_node
+    leaves them, and each holds the node's handle, so the node (its name in the graph,
+    its action servers) lived on until garbage collection; a reload then had two
+    /navigator nodes, the old one still serving navigate_to_pose.
+    """
     close = getattr(node, 'close', None)
     if close is not None:
         try:
             close()
         except Exception as error:  # noqa: B902 - report, then still clean up
             node.get_logger().error(f'close failed: {error}')
+    for waitable in list(node.waitables):
+        destroy = getattr(waitable, 'destroy', None)
+        if destroy is not None:
+            destroy()
     node.destroy_node()
 
 
@@ -432,12 +444,14 @@ def answer_clock(nodes: Sequence[Node], name: str) -> Optional[ClockAnswer]:
     return ClockAnswer(nodes, name)
 
 
-def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
+def spin_waking(node: Node, *more_nodes: Node, executor=None,
+                until: Optional[threading.Event] = None) -> None:
     """
     Spin the nodes until Ctrl-C/SIGTERM (then raise KeyboardInterrupt) or their context ends.
 
     Returns to Python every WAKE_PERIOD_S to look at the signals (see
-    :func:`signals_deferred`). ``executor``: default :func:`make_executor`'s.
+    :func:`signals_deferred`). ``executor``: default :func:`make_executor`'s. ``until``:
+    an event that ends the spin too, without KeyboardInterrupt (a reload's unload).
     """
     executor = executor or make_executor(node.context)
     for each in (node, *more_nodes):
@@ -447,7 +461,8 @@ def spin_waking(node: Node, *more_nodes: Node, executor=None) -> None:
                           else f'{node.get_name()} (+{len(more_nodes)} nodes)')
     with signals_deferred() as stop:
         try:
-            while node.context.ok() and not stop.is_set():
+            while node.context.ok() and not stop.is_set() and not (
+                    until is not None and until.is_set()):
                 executor.spin_once(timeout_sec=WAKE_PERIOD_S)
                 if answer is not None:
                     answer.after_spin(executor)
@@ -504,17 +519,21 @@ def leave_process(code: int) -> NoReturn:
     os._exit(code)
 
 
-def run_node(node_factory: Callable[[], Node], name: str,
+def run_node(node_factory: Callable[..., Node], name: str,
              args: Optional[List[str]] = None,
-             spin: Optional[Callable[[Node], None]] = None,
+             spin: Optional[Callable[..., None]] = None,
              leave: bool = True) -> int:
     """
     Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code.
 
-    ``spin`` replaces :func:`spin_waking` for nodes that drive their own loop. After a
-    normal close, with ``leave`` (a node's own process), the process ends there with
-    code 0 (:func:`leave_process`; not with $MECANUM_NODE_TEARDOWN=full); an error still
-    raises, with its traceback.
+    ``spin`` replaces :func:`spin_waking` for nodes that drive their own loop; it is
+    called as ``spin(node, until=event)``, and returns once the event is set (a reload's
+    unload). After a normal close, with ``leave`` (a node's own process), the process
+    ends there with code 0 (:func:`leave_process`; not with $MECANUM_NODE_TEARDOWN=full);
+    an error still raises, with its traceback. With MECANUM_RELOAD=stdin the process
+    takes reload commands (:mod:`mecanum_control.node_reload`): the node is closed, and
+    made anew (``node_factory(cli_args=..., use_global_arguments=False)``) from the
+    arguments of the next ``load``.
     """
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
@@ -523,28 +542,63 @@ def run_node(node_factory: Callable[[], Node], name: str,
         return 2
     # SIGINT also when inherited as ignored (e.g. `cmd &` in a script).
     raise_keyboard_interrupt_on_signals()
-    try:
-        node = node_factory()
-    except (ValueError, ParameterException) as error:
-        rclpy.logging.get_logger(name).fatal(f'{error}')
-        rclpy.try_shutdown()
-        return 2
-    except KeyboardInterrupt:
-        rclpy.try_shutdown()
-        return 0
-    try:
-        (spin or spin_waking)(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        # Ctrl-C in a terminal under ros2 launch reaches each node twice (the terminal's
-        # SIGINT to the process group, then launch's own): the second must not cut the
-        # close short with a traceback. SIGTERM (launch's escalation) still interrupts.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        with close_watchdog(name):
-            close_node(node)
+    channel = node_reload.reload_channel()
+    until = channel.unload_requested if channel is not None else None
+    node_args: Optional[List[str]] = None    # the first node: the process's arguments
+    while True:
+        try:
+            node = (node_factory() if node_args is None else
+                    node_factory(cli_args=node_args, use_global_arguments=False))
+        except (ValueError, ParameterException, TypeError) as error:
+            if isinstance(error, TypeError) and node_args is None:
+                raise   # a bug, not a bad parameter (on a reload: a node without options)
+            rclpy.logging.get_logger(name).fatal(f'{error}')
+            if node_args is not None:
+                node_reload.say(f'{node_reload.FAILED_PREFIX}{error}')
             rclpy.try_shutdown()
+            return 2
+        except KeyboardInterrupt:
+            rclpy.try_shutdown()
+            return 0
+        if node_args is not None:
+            node_reload.say(node_reload.LOADED_LINE)
+        interrupted = True
+        try:
+            if spin is None:
+                spin_waking(node, until=until)
+            else:
+                spin(node, until=until)
+            interrupted = False
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            if interrupted or until is None or not until.is_set():
+                # Ctrl-C in a terminal under ros2 launch reaches each node twice (the
+                # terminal's SIGINT to the process group, then launch's own): the second
+                # must not cut the close short with a traceback. SIGTERM (launch's
+                # escalation) still interrupts.
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+                with close_watchdog(name):
+                    close_node(node)
+                    rclpy.try_shutdown()
+        if interrupted or until is None or not until.is_set():
+            break
+        node_args = _reload(name, node, channel)
+        if node_args is None:
+            rclpy.try_shutdown()
+            break
     if leave and os.environ.get(TEARDOWN_VARIABLE, '') != 'full':
         with close_watchdog(name):
             leave_process(0)
     return 0
+
+
+def _reload(name: str, node: Node, channel) -> Optional[List[str]]:
+    """Close node for a reload, answer, and wait for the next load's arguments (None: end)."""
+    with close_watchdog(name):
+        close_node(node)
+    node_reload.say(node_reload.UNLOADED_LINE)
+    try:
+        return channel.next_load(threading.Event())
+    except KeyboardInterrupt:
+        return None

@@ -81,7 +81,9 @@ import math
 from pathlib import Path
 import select
 import sys
+import threading
 import time
+from typing import Optional
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, PoseArray, TransformStamped
@@ -91,6 +93,7 @@ from mecanum_control.firmware_tree import FirmwareUnavailable
 from mecanum_control.messages import planar_odometry
 from mecanum_control.node_main import (
     make_executor, release_executor, run_node, signals_deferred)
+from mecanum_control.node_reload import EitherEvent
 from mecanum_control.parameters import declare_number, declare_robot_config, positive
 from mecanum_control.runtime_parameters import read_only_parameters
 from nav_msgs.msg import Odometry
@@ -131,8 +134,8 @@ def stamp(time_s: float) -> Time:
 class SimulatorNode(Node):
     """Steps the simulation and publishes what its sensors see."""
 
-    def __init__(self):
-        super().__init__('simulator')
+    def __init__(self, **node_options):
+        super().__init__('simulator', **node_options)
         if self.get_parameter('use_sim_time').value:
             raise ValueError('the simulator makes /clock: do not set use_sim_time on it')
         robot = declare_robot_config(self)
@@ -357,15 +360,20 @@ class SimulatorNode(Node):
                 movers.poses.append(pose)
             self.movers_pub.publish(movers)
 
-    def run(self) -> None:
-        """Step forever, paced to real_time_factor, serving ROS callbacks every SPIN_PERIOD_S."""
+    def run(self, until: Optional[threading.Event] = None) -> None:
+        """
+        Step, paced to real_time_factor, serving ROS callbacks every SPIN_PERIOD_S.
+
+        Until Ctrl-C/SIGTERM (KeyboardInterrupt) or until is set (returns: a reload).
+        """
         executor = make_executor(self.context)
         executor.add_node(self)
         start = next_spin = time.monotonic()
         start_sim_s = self.sim.time_s
         factor = self._pace_factor()
         # Ctrl-C or SIGTERM: the step in progress ends, then KeyboardInterrupt.
-        with signals_deferred() as stop:
+        with signals_deferred() as interrupted:
+            stop = EitherEvent(interrupted, until)
             try:
                 while rclpy.ok() and not stop.is_set():
                     self.advance()
@@ -493,10 +501,10 @@ def main(args=None) -> int:
     return run_node(SimulatorNode, 'simulator', args, spin=_run)
 
 
-def _run(node: SimulatorNode) -> None:
+def _run(node: SimulatorNode, until: Optional[threading.Event] = None) -> None:
     """Run the simulation; a stack that stopped answering ends it with an error."""
     try:
-        node.run()
+        node.run(until)
     except LockstepError as error:
         node.get_logger().fatal(str(error))
         raise SystemExit(1) from None
