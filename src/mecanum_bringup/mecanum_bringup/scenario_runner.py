@@ -5,7 +5,7 @@ Usage (pip setup; on an apt install ``ros2 run mecanum_bringup run_scenarios``):
 
     ros2 run mecanum_bringup run_scenarios PATH [PATH ...] [--out DIR]
         [--junit FILE] [--real-time-factor X|max] [--no-lockstep] [--record] [--foxglove]
-        [--no-compose] [--jobs N] [--board core|firmware] [--quiet]
+        [--no-compose] [--jobs N] [--board core|firmware] [--cold] [--quiet]
 
 PATH is a scenario file or a folder of them (see :mod:`mecanum_bringup.scenario_loader` for the
 format; ``src/mecanum_bringup/scenarios`` holds the project's). Each scenario runs
@@ -20,6 +20,15 @@ use_composition), which costs far less CPU on simulated time; ``--no-compose`` r
 each node in its own process. A node that a freeze or a node fault acts on runs in a
 process of its own when composed (the run's ``composition.yaml``), so that the fault
 hits that node alone.
+
+Warm stacks: one scenario after another in a process (the only one, or each --jobs
+worker) runs on the same processes. After a run that ended cleanly its processes close
+their nodes and wait, idle; the next run makes its own nodes in them from its own launch
+file (mecanum_bringup.launch_runner ``--reloadable``, mecanum_control.node_reload):
+new nodes, so no state of the last run survives, without a new interpreter, imports and
+DDS participant each time. A run that failed, was interrupted or acted on the processes
+(node faults) stops them; the next starts cold, as does a run that needs other
+processes (recording, Foxglove). ``--cold`` starts every run's processes anew.
 
 The runner drives the steps (Nav2's NavigateToPose and FollowWaypoints goals, text commands
 on ``control_command``, twists on a command source's topic of the command chain, waits,
@@ -54,6 +63,7 @@ and skips the others.
 """
 
 import argparse
+import atexit
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -168,6 +178,11 @@ class RunOptions:
     #: Called with the SystemProcess once it is up, and with None when the steps end
     #: (for benchmarks that watch the node processes).
     on_system: Optional[Callable[[Optional['SystemProcess']], None]] = None
+    #: Warm stack: after a run that ended cleanly, keep the system's processes (their
+    #: nodes unloaded, idle) for this process's next run, which loads its nodes into
+    #: them instead of starting them anew (see :class:`KeptSystem`). False: every run
+    #: starts its processes and stops them. run_scenarios and run_sweep: on (--cold: off).
+    warm: bool = False
 
 
 # --- the files of a run --------------------------------------------------------------
@@ -251,24 +266,31 @@ class SystemProcess:
     """The launch runner running one scenario's system; output to a log file and memory."""
 
     def __init__(self, launch_file: Path, env: Dict[str, str], log_file: Path,
-                 compose: bool = True, composition_file: Optional[Path] = None):
+                 compose: bool = True, composition_file: Optional[Path] = None,
+                 reloadable: bool = False):
         """
         Start the launch runner in its own session, with a marker in its environment.
 
         compose groups the nodes into containers: those of composition_file (default:
-        mecanum_bringup's config/composition.yaml).
+        mecanum_bringup's config/composition.yaml). reloadable: the runner takes unload
+        and load commands (:meth:`unload`, :meth:`load`); its standard input closing
+        stops it.
         """
         self.marker = uuid.uuid4().hex
         self.lines: List[str] = []
+        self._since = 0     # the first line of this run (has_line, tail)
         self._lock = threading.Lock()
         self._log = open(log_file, 'w', encoding='utf-8')
         self.compose = compose
         self.composition_file = composition_file
+        self.reloadable = reloadable
         composition = ['--composition', str(composition_file)] if composition_file else []
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'mecanum_bringup.launch_runner',
+             *(['--reloadable'] if reloadable else []),
              *(['--compose', *composition] if compose else []), str(launch_file)],
             env=dict(env, **{RUN_MARKER: self.marker}), stdout=subprocess.PIPE,
+            stdin=subprocess.PIPE if reloadable else subprocess.DEVNULL,
             stderr=subprocess.STDOUT, text=True, start_new_session=True,
             # A runner killed outright (SIGKILL, a Ray worker or node lost) takes its
             # system with it: the launch runner stops every node when it gets SIGTERM.
@@ -309,18 +331,67 @@ class SystemProcess:
         return None
 
     def has_line(self, *parts: str) -> bool:
-        """Tell whether an output line so far contains every one of parts."""
+        """Tell whether an output line of this run so far contains every one of parts."""
         with self._lock:
-            return any(all(part in line for part in parts) for line in self.lines)
+            return any(all(part in line for part in parts)
+                       for line in self.lines[self._since:])
+
+    def _command(self, text: str, done: str, failed: Tuple[str, ...],
+                 timeout_s: float) -> bool:
+        """Send the runner a reload command; wait for its done line (False: it failed)."""
+        with self._lock:
+            start = len(self.lines)
+        try:
+            self.process.stdin.write(text)
+            self.process.stdin.flush()
+        except (OSError, ValueError, AttributeError):
+            return False
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and self.alive():
+            with self._lock:
+                for line in self.lines[start:]:
+                    if line.startswith(done):
+                        return True
+                    if line.startswith(failed):
+                        return False
+            time.sleep(0.02)
+        return False
+
+    def unload(self, timeout_s: float = 30.0) -> bool:
+        """Have every process close its nodes and wait, idle; False: it failed (stop it)."""
+        done = self.reloadable and self._command(
+            'unload\n', '[runner] unloaded', ('[runner] reload failed',), timeout_s)
+        with self._lock:
+            self._log.flush()    # the run's log is complete (the file stays open)
+        return done
+
+    def load(self, launch_file: Path, log_file: Path, composition_file: Optional[Path],
+             timeout_s: float = 90.0) -> bool:
+        """
+        Make the nodes of launch_file in the unloaded processes, a new run (log_file).
+
+        False: the runner refused (other processes) or a process failed; stop it then.
+        """
+        if not self.reloadable or self.composition_file != composition_file:
+            return False
+        with self._lock:
+            self._log.close()
+            self._log = open(log_file, 'w', encoding='utf-8')
+            self._since = len(self.lines)
+        document = {'launch_file': str(launch_file), 'compose': self.compose,
+                    'composition': str(composition_file) if composition_file else None}
+        return self._command('load ' + json.dumps(document) + '\n', '[runner] loaded',
+                             ('[runner] reload refused', '[runner] reload failed'),
+                             timeout_s)
 
     def alive(self) -> bool:
         """Tell whether the launch runner still runs."""
         return self.process.poll() is None
 
     def tail(self, count: int = 20) -> str:
-        """Return the last count output lines."""
+        """Return the last count output lines of this run."""
         with self._lock:
-            return '\n'.join(self.lines[-count:])
+            return '\n'.join(self.lines[self._since:][-count:])
 
     def stop(self, timeout_s: float = 20.0) -> None:
         """Ctrl-C the runner (it stops every node), then kill whatever is left."""
@@ -583,45 +654,44 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
     record = RunRecord()
     plans: List[np.ndarray] = []
     launch_file = write_run_files(scenario, run_dir, options)
-    with lease_domain_id() as lease:
-        env = isolated_environment(os.environ, lease.domain_id)
-        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        compose, composition = (write_composition(scenario, run_dir) if options.compose
-                                else (False, None))
-        system = SystemProcess(launch_file, env, run_dir / 'system.log', compose, composition)
-        driver = None
+    compose, composition = (write_composition(scenario, run_dir) if options.compose
+                            else (False, None))
+    system, lease, warm = _system_for(launch_file, run_dir, compose, composition, options)
+    driver = None
+    try:
+        from mecanum_bringup.scenario_driver import ScenarioDriver
+        driver = ScenarioDriver(lease.domain_id)
+        _wait_until_ready(scenario, system, driver, say)
+        say(f'{scenario.name}: system up in {time.monotonic() - started:.0f} s '
+            f'({"warm: its processes reused" if warm else "cold"}, ROS_DOMAIN_ID '
+            f'{lease.domain_id}); {len(scenario.steps)} steps')
+        if options.on_system:
+            options.on_system(system)
         try:
-            from mecanum_bringup.scenario_driver import ScenarioDriver
-            driver = ScenarioDriver(lease.domain_id)
-            _wait_until_ready(scenario, system, driver, say)
-            say(f'{scenario.name}: system up in {time.monotonic() - started:.0f} s '
-                f'(ROS_DOMAIN_ID {lease.domain_id}); {len(scenario.steps)} steps')
-            if options.on_system:
-                options.on_system(system)
-            try:
-                _run_steps(scenario, driver, system, record, options, say)
-            finally:
-                if options.on_system:
-                    options.on_system(None)
-        except Interrupted:
-            record.aborted = f'interrupted ({interrupted_by()})'
-        except SystemDown:
-            record.aborted = 'the system stopped: ' + system.tail(5).replace('\n', ' | ')
-        except Exception as error:  # noqa: B902 - a runner failure is reported, not raised
-            record.aborted = f'runner error: {type(error).__name__}: {error}'
+            _run_steps(scenario, driver, system, record, options, say)
         finally:
-            if driver is not None:
-                _end_aborted_step(record, driver.sim_now())
-                record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
-                record.collision_times = list(driver.collision_times)
-                record.safety_events = driver.safety_events()
-                record.chain_states = driver.chain_states()
-                plans = driver.plans()
-                collision_points = driver.collision_points()
-                driver.close()
-            else:
-                collision_points = []
-            system.stop()
+            if options.on_system:
+                options.on_system(None)
+    except Interrupted:
+        record.aborted = f'interrupted ({interrupted_by()})'
+    except SystemDown:
+        record.aborted = 'the system stopped: ' + system.tail(5).replace('\n', ' | ')
+    except Exception as error:  # noqa: B902 - a runner failure is reported, not raised
+        record.aborted = f'runner error: {type(error).__name__}: {error}'
+    finally:
+        if driver is not None:
+            _end_aborted_step(record, driver.sim_now())
+            record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
+            record.collision_times = list(driver.collision_times)
+            record.safety_events = driver.safety_events()
+            record.chain_states = driver.chain_states()
+            plans = driver.plans()
+            collision_points = driver.collision_points()
+            driver.close()
+        else:
+            collision_points = []
+        _keep_or_stop(system, lease, options.warm and record.aborted is None
+                      and not INTERRUPTED.is_set() and not fault_nodes(scenario))
     if record.step_results:
         record.duration_s = record.step_results[-1].end_s - record.step_results[0].start_s
     verdict = judge(scenario, record)
@@ -640,6 +710,79 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
                    header='t_s,x_m,y_m,yaw_rad', comments='')
     _plot(scenario, record, plans, collision_points, run_dir / 'run.png', verdict.verdict)
     return result
+
+
+class KeptSystem:
+    """
+    A warm stack: the processes of this process's last clean run, unloaded, idle.
+
+    Between two runs no node exists (each process closed and destroyed its nodes: their
+    state goes with them) and nothing runs: the next run loads its own nodes, from its
+    own launch file, into the same processes (:meth:`SystemProcess.load`), in the same
+    ROS domain, still leased. A run that failed to start, was interrupted, ended with an
+    error or acted on the processes (node faults) is not kept: its processes stop, and
+    the next run starts cold. So is a system with other processes (the launch runner
+    refuses the load). At exit (the last run done, a --jobs worker ending) the kept
+    system stops; a kept system whose runner process dies stops with it (its standard
+    input closes).
+    """
+
+    def __init__(self, system: SystemProcess, lease) -> None:
+        """Keep system (unloaded) and its domain lease."""
+        self.system = system
+        self.lease = lease
+
+    def close(self) -> None:
+        """Stop the processes and give the domain back."""
+        try:
+            self.system.stop()
+        finally:
+            self.lease.release()
+
+
+_KEPT: Dict[str, KeptSystem] = {}
+
+
+def release_kept_system() -> None:
+    """Stop the kept system, if any (at exit; tests)."""
+    kept = _KEPT.pop('system', None)
+    if kept is not None:
+        kept.close()
+
+
+atexit.register(release_kept_system)
+
+
+def _system_for(launch_file: Path, run_dir: Path, compose: bool,
+                composition: Optional[Path], options: RunOptions):
+    """Return (system, domain lease, warm) for a run: the kept one loaded, or a new one."""
+    kept = _KEPT.pop('system', None)
+    if kept is not None:
+        if (options.warm and kept.system.compose == compose and kept.system.alive()
+                and kept.system.load(launch_file, run_dir / 'system.log', composition)):
+            return kept.system, kept.lease, True
+        kept.close()
+    lease = lease_domain_id()
+    try:
+        env = isolated_environment(os.environ, lease.domain_id)
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        system = SystemProcess(launch_file, env, run_dir / 'system.log', compose, composition,
+                               reloadable=options.warm)
+    except BaseException:
+        lease.release()
+        raise
+    return system, lease, False
+
+
+def _keep_or_stop(system: SystemProcess, lease, keep: bool) -> None:
+    """After a run: keep the system for the next run (unloaded), or stop it."""
+    if keep and system.alive() and system.unload():
+        _KEPT['system'] = KeptSystem(system, lease)
+        return
+    try:
+        system.stop()
+    finally:
+        lease.release()
 
 
 def _wait_until_ready(scenario: Scenario, system: SystemProcess, driver,
@@ -972,6 +1115,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='record every topic to DIR/NAME/bag (MCAP rosbag2)')
     parser.add_argument('--foxglove', action='store_true',
                         help='serve the running system to Foxglove (ws://localhost:8765)')
+    parser.add_argument('--cold', action='store_true',
+                        help="start every scenario's processes anew (default: a scenario "
+                        'reuses those of the one before it in the same process, idle '
+                        'between them, with new nodes: warm stacks)')
     parser.add_argument('--no-compose', action='store_true',
                         help='run every node in its own process (default: composed)')
     parser.add_argument('--jobs', type=int, default=1,
@@ -1006,7 +1153,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     say = (lambda text: None) if options.quiet else (lambda text: print(text, flush=True))
     run_options = RunOptions(Path(options.out), options.real_time_factor, options.record,
                              options.foxglove, say, compose=not options.no_compose,
-                             lockstep=not options.no_lockstep, board=options.board)
+                             lockstep=not options.no_lockstep, board=options.board,
+                             warm=not options.cold)
 
     with stopping_cleanly_on_signals():
         results += _run_all(scenarios, run_options, options.jobs, options.quiet, say)

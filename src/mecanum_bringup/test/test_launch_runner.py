@@ -192,3 +192,90 @@ def test_the_start_line_says_whether_the_domain_is_shared():
         'ROS_DOMAIN_ID=12, shared with every ROS program')
     assert domain_words({'ROS_DOMAIN_ID': '57'}, True) == \
         'ROS_DOMAIN_ID=57 (leased: this system alone)'
+
+
+RELOADER = """
+    echo "reloader args: $* (MECANUM_RELOAD=$MECANUM_RELOAD)"
+    while read -r word rest; do
+      if [ "$word" = unload ]; then echo "reload: unloaded"; fi
+      if [ "$word" = load ]; then echo "reloader args: $rest"; echo "reload: loaded"; fi
+    done
+    """
+
+
+def launch_file(path: Path, executable: str, rate: int) -> Path:
+    path.write_text(textwrap.dedent(f"""
+        launch:
+        - node: {{pkg: demo, exec: {executable}, name: r1, param: [{{name: rate, value: {rate}}}]}}
+        """))
+    return path
+
+
+def test_a_reloadable_runner_unloads_then_loads_new_arguments_into_the_same_process(
+        prefix, tmp_path):
+    from mecanum_bringup.system_description import load_system
+    make_executable(prefix, 'demo', 'reloader', RELOADER)
+    out = io.StringIO()
+    first = launch_file(tmp_path / 'a.launch.yaml', 'reloader', 7)
+    supervisor = Supervisor(load_system(first, {}), environ(prefix), out=out, reloadable=True)
+    thread, _ = run_in_thread(supervisor)
+    try:
+        assert wait_for(lambda: 'rate:=7 (MECANUM_RELOAD=stdin)' in out.getvalue())
+        pid = supervisor.nodes[0].process.pid
+        # A load before an unload is refused: the old nodes must be gone first.
+        supervisor.commands.put(('load', {'launch_file': str(first)}))
+        assert wait_for(lambda: 'reload refused: the processes were not unloaded' in
+                        out.getvalue())
+        supervisor.commands.put(('unload', None))
+        assert wait_for(lambda: '[runner] unloaded' in out.getvalue())
+        second = launch_file(tmp_path / 'b.launch.yaml', 'reloader', 8)
+        supervisor.commands.put(('load', {'launch_file': str(second)}))
+        assert wait_for(lambda: '[runner] loaded b.launch.yaml: r1' in out.getvalue())
+        assert '[r1] reloader args: ["--ros-args", "-r", "__node:=r1", "-p", "rate:=8"]' \
+            in out.getvalue()
+        assert supervisor.nodes[0].process.pid == pid
+        # Another executable cannot be loaded into the process: refused, it runs on.
+        supervisor.commands.put(('unload', None))
+        assert wait_for(lambda: out.getvalue().count('[runner] unloaded') == 2)
+        other = launch_file(tmp_path / 'c.launch.yaml', 'talker', 9)
+        supervisor.commands.put(('load', {'launch_file': str(other)}))
+        assert wait_for(lambda: "reload refused: r1: executable differs ('talker')"
+                        in out.getvalue())
+        assert supervisor.nodes[0].process.pid == pid
+    finally:
+        supervisor.request_shutdown('test over')
+        thread.join(timeout=10)
+
+
+def test_an_unload_that_a_process_does_not_answer_is_reported(prefix, tmp_path):
+    from mecanum_bringup import launch_runner
+    from mecanum_bringup.system_description import load_system
+    out = io.StringIO()
+    path = launch_file(tmp_path / 'a.launch.yaml', 'talker', 7)   # reads no commands
+    supervisor = Supervisor(load_system(path, {}), environ(prefix), out=out, reloadable=True)
+    original = launch_runner.UNLOAD_TIMEOUT_S
+    launch_runner.UNLOAD_TIMEOUT_S = 0.5
+    thread, _ = run_in_thread(supervisor)
+    try:
+        assert wait_for(lambda: 'talker args' in out.getvalue())
+        supervisor.commands.put(('unload', None))
+        assert wait_for(lambda: 'reload failed: r1 did not answer within 0.5 s'
+                        in out.getvalue())
+    finally:
+        launch_runner.UNLOAD_TIMEOUT_S = original
+        supervisor.request_shutdown('test over')
+        thread.join(timeout=10)
+
+
+def test_reload_refusal_names_what_differs():
+    from mecanum_bringup.launch_runner import reload_refusal
+    running = [NodeProcess('demo', 'talker', name='a'), NodeProcess('demo', 'quitter')]
+    assert reload_refusal(running, [
+        NodeProcess('demo', 'talker', name='a', parameters=[('rate', 2)],
+                    arguments=['x']),
+        NodeProcess('demo', 'quitter', remappings=[('a', 'b')])]) is None
+    assert reload_refusal(running, running[:1]) == 'other processes (a instead of a, quitter)'
+    assert reload_refusal(running, [NodeProcess('demo', 'talker', name='a', respawn=True),
+                                    running[1]]) == 'a: respawn differs (True)'
+    assert reload_refusal(running, [running[0], NodeProcess(
+        'demo', 'quitter', env={'X': '1'})]) == "quitter: env differs ({'X': '1'})"
