@@ -68,6 +68,10 @@ def node_class(package: str, executable: str) -> type:
         raise CompositionError(
             f'{package}/{executable}: {points[0].module} defines {len(classes)} node classes; '
             'a composable executable has exactly one')
+    if not getattr(classes[0], 'composable', True):
+        raise CompositionError(
+            f'{package}/{executable}: {classes[0].__name__} drives its own loop, so it '
+            'cannot run in a container')
     parameters = inspect.signature(classes[0].__init__).parameters.values()
     if not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
         raise CompositionError(

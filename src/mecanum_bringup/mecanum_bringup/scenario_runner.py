@@ -1055,14 +1055,17 @@ def _run_all(scenarios: Sequence[Scenario], options: RunOptions, jobs: int, quie
             f'{options.out_dir / scenario.name}')
 
     if jobs <= 1:
-        for index, scenario in enumerate(scenarios, start=1):
-            if INTERRUPTED.is_set():
-                results.append(ScenarioResult(scenario.name, scenario.expect,
-                                              error='not run (interrupted)'))
-                continue
-            say(f'[{index}/{len(scenarios)}] {scenario.name}: {scenario.description}')
-            results.append(run_scenario(scenario, options))
-            report(index, scenario, results[-1])
+        try:
+            for index, scenario in enumerate(scenarios, start=1):
+                if INTERRUPTED.is_set():
+                    results.append(ScenarioResult(scenario.name, scenario.expect,
+                                                  error='not run (interrupted)'))
+                    continue
+                say(f'[{index}/{len(scenarios)}] {scenario.name}: {scenario.description}')
+                results.append(run_scenario(scenario, options))
+                report(index, scenario, results[-1])
+        finally:
+            release_kept_system()
         return results
     say(f'running {len(scenarios)} scenarios, {jobs} at once')
     # spawn: a fresh interpreter per worker (no forked rclpy or reader threads).

@@ -51,8 +51,8 @@ from mecanum_bringup.scenario_judge import min_zone_clearance_m
 from mecanum_bringup.scenario_loader import load_scenario, ScenarioError
 from mecanum_bringup.scenario_report import ScenarioResult
 from mecanum_bringup.scenario_runner import (
-    interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, run_scenario,
-    RunOptions, stopping_cleanly_on_signals)
+    interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, release_kept_system,
+    run_scenario, RunOptions, stopping_cleanly_on_signals)
 from mecanum_bringup.sweep import (
     input_digests, load_sweep, Sweep, SweepError, Variant, variant_documents, variants)
 from mecanum_bringup.sweep_store import ResultsStore, StoreError, VariantRow
@@ -149,7 +149,8 @@ def run_variant(index: int, name: str, values: Dict[str, Any], scenario_doc: Dic
 
     A plain function of plain arguments, so that it runs the same in this process, in a
     --jobs worker and as a Ray task on another node; options: real_time_factor (0 =
-    max), record, lockstep.
+    max), record, lockstep, warm (reuse the processes of this process's last variant:
+    scenario_runner.KeptSystem; never on Ray, whose workers outlive the sweep).
     """
     _normal_priority()
     runs = Path(out_dir) / 'runs'
@@ -158,7 +159,8 @@ def run_variant(index: int, name: str, values: Dict[str, Any], scenario_doc: Dic
     result = run_scenario(scenario, RunOptions(
         runs, real_time_factor=options.get('real_time_factor', 0.0),
         record=bool(options.get('record', False)),
-        lockstep=bool(options.get('lockstep', True))))
+        lockstep=bool(options.get('lockstep', True)),
+        warm=bool(options.get('warm', False))))
     if INTERRUPTED.is_set():
         return None
     return variant_row(index, name, values, result, str(runs / name))
@@ -290,12 +292,15 @@ def run_local(todo: Sequence[PreparedVariant], out_dir: Path, options: Dict[str,
     """Run the variants jobs at once in worker processes; return why some did not run."""
     problems: List[str] = []
     if jobs <= 1:
-        for item in todo:
-            if INTERRUPTED.is_set():
-                break
-            row = run_variant(*_arguments(item, out_dir, options))
-            if row is not None:
-                on_row(row)
+        try:
+            for item in todo:
+                if INTERRUPTED.is_set():
+                    break
+                row = run_variant(*_arguments(item, out_dir, options))
+                if row is not None:
+                    on_row(row)
+        finally:
+            release_kept_system()
         return problems
     # spawn: a fresh interpreter per worker (no forked rclpy or reader threads).
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context('spawn'),
@@ -454,8 +459,8 @@ def run_sweep(sweep: Sweep, out_dir: Path, jobs: int = 1, ray_address: Optional[
             bar.draw()
             with stopping_cleanly_on_signals():
                 if ray_address:
-                    problems = run_on_ray(ray_address, todo, out_dir, options, retries,
-                                          on_row, say)
+                    problems = run_on_ray(ray_address, todo, out_dir,
+                                          dict(options, warm=False), retries, on_row, say)
                 else:
                     problems = run_local(todo, out_dir, options, jobs, on_row, say)
             bar.close()
@@ -502,6 +507,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="a number, or 'max' (default: as fast as the stack answers)")
     parser.add_argument('--record', action='store_true',
                         help='record every topic of every run (DIR/runs/NAME/bag)')
+    parser.add_argument('--cold', action='store_true',
+                        help="start every variant's processes anew (default, but on Ray: "
+                        'a variant reuses those of the one before it in the same worker, '
+                        'with new nodes; see run_scenarios)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
     args = parser.parse_args(argv)
     if args.jobs < 1:
@@ -518,7 +527,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         summary = run_sweep(sweep, out_dir, args.jobs, args.ray,
                             {'real_time_factor': args.real_time_factor,
-                             'record': args.record, 'lockstep': True},
+                             'record': args.record, 'lockstep': True,
+                             'warm': not args.cold},
                             args.ray_retries, progress_stream=stream)
     except (SweepError, StoreError) as error:
         print(f'run_sweep: {error}', file=sys.stderr)

@@ -134,6 +134,9 @@ def stamp(time_s: float) -> Time:
 class SimulatorNode(Node):
     """Steps the simulation and publishes what its sensors see."""
 
+    #: It drives its own loop (run()), not an executor's spin: never in a node container.
+    composable = False
+
     def __init__(self, **node_options):
         super().__init__('simulator', **node_options)
         if self.get_parameter('use_sim_time').value:
