@@ -526,9 +526,9 @@ def run_node(node_factory: Callable[..., Node], name: str,
     """
     Create the node, spin it until Ctrl-C/SIGTERM, close it; return an exit code.
 
-    ``spin`` replaces :func:`spin_waking` for nodes that drive their own loop; it is
-    called as ``spin(node, until=event)``, and returns once the event is set (a reload's
-    unload). After a normal close, with ``leave`` (a node's own process), the process
+    ``spin`` replaces :func:`spin_waking` for nodes that drive their own loop; with
+    reloads it is called as ``spin(node, until=event)`` and returns once the event is set
+    (a reload's unload), else as ``spin(node)``. After a normal close, with ``leave`` (a node's own process), the process
     ends there with code 0 (:func:`leave_process`; not with $MECANUM_NODE_TEARDOWN=full);
     an error still raises, with its traceback. With MECANUM_RELOAD=stdin the process
     takes reload commands (:mod:`mecanum_control.node_reload`): the node is closed, and
@@ -566,6 +566,8 @@ def run_node(node_factory: Callable[..., Node], name: str,
         try:
             if spin is None:
                 spin_waking(node, until=until)
+            elif until is None:
+                spin(node)
             else:
                 spin(node, until=until)
             interrupted = False
