@@ -530,11 +530,11 @@ def run_node(node_factory: Callable[..., Node], name: str,
     reloads it is called as ``spin(node, until=event)`` and returns once the event is set
     (a reload's unload), else as ``spin(node)``. After a normal close, with ``leave`` (a
     node's own process), the process ends there with code 0 (:func:`leave_process`; not
-    with $MECANUM_NODE_TEARDOWN=full);
-    an error still raises, with its traceback. With MECANUM_RELOAD=stdin the process
-    takes reload commands (:mod:`mecanum_control.node_reload`): the node is closed, and
-    made anew (``node_factory(cli_args=..., use_global_arguments=False)``) from the
-    arguments of the next ``load``.
+    with $MECANUM_NODE_TEARDOWN=full); an error still raises, with its traceback. With
+    MECANUM_RELOAD=stdin the process takes reload commands
+    (:mod:`mecanum_control.node_reload`): the node is closed, and made anew
+    (``node_factory(cli_args=..., use_global_arguments=False)``) from the arguments of
+    the next ``load``.
     """
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
