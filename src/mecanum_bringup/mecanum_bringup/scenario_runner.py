@@ -17,9 +17,9 @@ simulated time, and every one of those processes is gone when the scenarios end,
 whatever happened (between two scenarios they may stay, without nodes: warm stacks).
 The nodes run composed (launch runner ``--compose``: the control chain in one process,
 localisation and navigation in another, as Nav2's use_composition), which costs far
-less CPU on simulated time; ``--no-compose`` runs each node in its own process. A node that a freeze or a node fault acts on runs in a
-process of its own when composed (the run's ``composition.yaml``), so that the fault
-hits that node alone.
+less CPU on simulated time; ``--no-compose`` runs each node in its own process. A node
+that a freeze or a node fault acts on runs in a process of its own when composed (the
+run's ``composition.yaml``), so that the fault hits that node alone.
 
 Warm stacks: one scenario after another in a process (the only one, or each --jobs
 worker) runs on the same processes. After a run that ended cleanly its processes close
