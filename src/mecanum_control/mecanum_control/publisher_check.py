@@ -21,7 +21,7 @@ that is no ROS node publishing on the topic).
 """
 
 import re
-from typing import Iterable, List, Optional, Sequence, Tuple
+from typing import Iterable, List, Mapping, Optional, Sequence, Tuple
 
 #: rmw's node name and namespace of an endpoint whose node it has not discovered.
 UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
@@ -220,3 +220,19 @@ class PublisherCheck:
         """Return key-value pairs for /diagnostics."""
         return [('topic', self.topic), ('expected_publishers', ', '.join(self.expected)),
                 ('unexpected_publishers', ', '.join(self.intruders))]
+
+
+def other_check_holds(status_name: str, values: Mapping[str, str], topic: str,
+                      own_name: str) -> Optional[bool]:
+    """
+    Read another node's publisher check of topic from its /diagnostics status.
+
+    True: that node sees unexpected publishers of topic, so it holds its output at zero
+    (hardware_interface on motor_efforts: the board); False: it sees none; None: the
+    status is not such a check (or is own_name's own). status_name is
+    ``'mecanum_control: NODE publishers of TOPIC'``, values its key-value pairs.
+    """
+    suffix = f' publishers of {topic}'
+    if not status_name.endswith(suffix) or status_name.endswith(f' {own_name}{suffix}'):
+        return None
+    return bool(values.get('unexpected_publishers', '').strip())

@@ -31,7 +31,11 @@ it; once it has gone, control resumes with the targets and measurements received
 then on (mecanum_control.publisher_check). An intruder on motor_efforts also clears the
 stall latches (hardware_interface holds the board at zero for it, so wheels that stood
 still were not stalled), and control resumes one check after it has gone, when
-hardware_interface has resumed.
+hardware_interface has resumed. The same while hardware_interface says on /diagnostics
+(its publisher check of motor_efforts, at most ``BOARD_HELD_S`` old) that it holds the
+board at zero for a publisher this node may not see (a killed process's stale writer,
+listed only by an older DDS participant: after a respawn of this node, all four wheels
+latched as stalled against the held board, for good).
 
 Run-time parameters (``ros2 param set /velocity_controller kp 0.04``; checked as at
 start-up, logged, see :mod:`mecanum_control.runtime_parameters`): the gains ``kp``,
@@ -56,9 +60,11 @@ from mecanum_control.node_main import run_node
 from mecanum_control.parameters import declare_robot_config, positive
 from mecanum_control.pid import (FAULT_WRONG_DIRECTION, PidController, PidGains, StallConfig,
                                  StallDetector)
+from mecanum_control.publisher_check import other_check_holds
 from mecanum_control.publisher_check_node import (
     declare_publisher_check, MatchWatch, poll_publisher_check, start_publisher_checks)
 from mecanum_control.runtime_parameters import PUBLISHER_CHECK_REASON, RuntimeParameters
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -70,6 +76,9 @@ WHEELS = ('FL', 'FR', 'RL', 'RR')
 # A measured wheel speed beyond this many times max_wheel_speed_rad_s is not physical
 # (the no-load speed is only about 1.2 x that): a decoding or transport glitch.
 PLAUSIBLE_SPEED_FACTOR = 4.0
+#: Seconds (node clock) hardware_interface's last word that it holds the board at zero
+#: counts: it repeats it every check (1 s) while it holds; silence ends the hold.
+BOARD_HELD_S = 3.0
 
 #: The gains: PidGains' fields, run-time parameters of the same names.
 GAIN_PARAMETERS = tuple(field.name for field in fields(PidGains))
@@ -231,6 +240,14 @@ class VelocityController(Node):
                 (self.efforts_pub, 'motor_efforts_publishers', 2))]
         self.publisher_timer = start_publisher_checks(self, self.publisher_checks,
                                                       self.check_publishers)
+        # hardware_interface may hold the board at zero for a publisher of motor_efforts
+        # that this node cannot see (a killed process's stale writer, which only an older
+        # DDS participant still lists): it says so on /diagnostics (its publisher check).
+        # Meanwhile the loops do not push against the held board, nor judge stalls (the
+        # wheels stand still on purpose), as for an intruder seen here.
+        self._board_held_until: Optional[Time] = None
+        self.diag_sub = self.create_subscription(DiagnosticArray, '/diagnostics',
+                                                 self.on_diagnostics, 20)
         self.clear_srv = self.create_service(Trigger, '~/clear_wheel_faults',
                                              self.on_clear_wheel_faults)
         self.timer = self.create_timer(1.0 / control_rate_hz, self.on_control)
@@ -324,8 +341,39 @@ class VelocityController(Node):
         self.efforts_pub.publish(wheel_array(self.efforts))
 
     def _intruded(self) -> bool:
-        """Tell whether an unexpected node publishes motor_speeds, joint_states or efforts."""
+        """
+        Tell whether an unexpected node publishes motor_speeds, joint_states or efforts.
+
+        Or whether hardware_interface said (within BOARD_HELD_S) that it holds the board at
+        zero for an unexpected publisher of motor_efforts.
+        """
+        if self._board_held_until is not None:
+            if self.get_clock().now() < self._board_held_until:
+                return True
+            self._board_held_until = None
         return any(check.stopped for check in self.publisher_checks)
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """Take hardware_interface's word that it holds the board at zero, or no longer."""
+        for status in msg.status:
+            held = other_check_holds(status.name, {kv.key: kv.value for kv in status.values},
+                                     self.efforts_pub.topic_name, self.get_name())
+            if held is None:
+                continue
+            if held:
+                if self._board_held_until is None:
+                    self.get_logger().warning(
+                        f'{status.name.split(": ", 1)[-1]}: unexpected ones, so the board is '
+                        'held at zero: all efforts zero, no stall judged, until it says they '
+                        'are gone')
+                    self._clear_stalls()
+                self._board_held_until = self.get_clock().now() + Duration(
+                    seconds=BOARD_HELD_S)
+            elif self._board_held_until is not None:
+                self._board_held_until = None
+                self.target_time = self.measured_time = None   # only what comes from now
+                self.get_logger().warning('hardware_interface no longer holds the board at '
+                                          'zero: control resumes')
 
     def _on_new_publisher(self) -> None:
         """Judge no stall until the publisher of an input that just matched is named."""

@@ -200,3 +200,21 @@ def test_after_a_match_the_looks_go_on_while_a_publisher_has_no_name():
     assert times[-1] == MATCH_UNNAMED_LIMIT_S
     gaps = [b - a for a, b in zip(times, times[1:])]
     assert max(gaps) <= MATCH_UNNAMED_PERIOD_S + 1e-6 and min(gaps) > 0.0
+
+
+def test_another_nodes_check_of_a_topic_says_whether_it_holds():
+    from mecanum_control.publisher_check import other_check_holds
+    name = 'mecanum_control: hardware_interface publishers of /motor_efforts'
+    assert other_check_holds(name, {'unexpected_publishers': '(an endpoint of no known '
+                                    'ROS node)'}, '/motor_efforts', 'velocity_controller')
+    assert other_check_holds(name, {'unexpected_publishers': ''}, '/motor_efforts',
+                             'velocity_controller') is False
+    assert other_check_holds(name, {}, '/motor_efforts', 'velocity_controller') is False
+    # Its own check, another topic, another status: not such a word.
+    own = 'mecanum_control: velocity_controller publishers of /motor_efforts'
+    assert other_check_holds(own, {'unexpected_publishers': '/x'}, '/motor_efforts',
+                             'velocity_controller') is None
+    assert other_check_holds(name, {'unexpected_publishers': '/x'}, '/motor_speeds',
+                             'velocity_controller') is None
+    assert other_check_holds('mecanum_control: hardware_interface', {}, '/motor_efforts',
+                             'velocity_controller') is None
