@@ -30,9 +30,9 @@ from rclpy.signals import SignalHandlerOptions
 from ros2bag_mcap.bag import Bag, BagError, iter_messages
 from ros2bag_mcap.offer import describe, Offer, playback_offer
 from ros2bag_mcap.selection import TopicFilter
-from ros2bag_mcap.timing import (bag_time_ns, check_rate, clock_period_s, due_offset_s,
-                                 next_tick_s, NO_LIMIT, NS_PER_S, play_until_ns,
-                                 playback_start_ns, shall_stop)
+from ros2bag_mcap.timing import (bag_time_ns, check_rate, clock_period_s, clock_stamp_ns,
+                                 due_offset_s, next_tick_s, NO_LIMIT, NS_PER_S,
+                                 play_until_ns, playback_start_ns, shall_stop)
 from rosgraph_msgs.msg import Clock
 from rosidl_runtime_py.utilities import get_message
 
@@ -152,25 +152,31 @@ class Player:
             self.count += topic.message_count
             self.logger.debug(f'Publishing {topic.name} ({topic.type_name}, {describe(offer)})')
 
-    def _clock_now_ns(self, now_s: float) -> int:
+    def _clock_now_ns(self, now_s: float, next_due_ns: Optional[int] = None) -> int:
         if self._held_ns is not None:
             return self._held_ns
-        return bag_time_ns(now_s - self._origin_s, self.start_ns, self.rate)
+        if next_due_ns is None:
+            return bag_time_ns(now_s - self._origin_s, self.start_ns, self.rate)
+        return clock_stamp_ns(now_s - self._origin_s, self.start_ns, self.rate, next_due_ns)
 
     def _publish_clock(self, stamp_ns: int) -> None:
         msg = Clock()
         msg.clock.sec, msg.clock.nanosec = divmod(max(0, stamp_ns), NS_PER_S)
         self.clock_publisher.publish(msg)
 
-    def _wait_until(self, due_s: float) -> None:
-        """Sleep until the monotonic time due_s, publishing /clock on its ticks meanwhile."""
+    def _wait_until(self, due_s: float, due_ns: Optional[int] = None) -> None:
+        """
+        Sleep until the monotonic time due_s, publishing /clock on its ticks meanwhile.
+
+        due_ns: the log time of the message due then (/clock does not pass it).
+        """
         while True:
             now = time.monotonic()
             if self.period_s is not None:
                 if self._tick_s is None:
                     self._tick_s = now
                 if now >= self._tick_s:
-                    self._publish_clock(self._clock_now_ns(now))
+                    self._publish_clock(self._clock_now_ns(now, due_ns))
                     self._tick_s = next_tick_s(self._tick_s, self.period_s, now)
             if now >= due_s:
                 return
@@ -189,7 +195,8 @@ class Player:
             if shall_stop(message.log_time_ns, self.until_ns):
                 break
             self._wait_until(self._origin_s
-                             + due_offset_s(message.log_time_ns, self.start_ns, self.rate))
+                             + due_offset_s(message.log_time_ns, self.start_ns, self.rate),
+                             message.log_time_ns)
             if self.clock_publisher is not None and (
                     self.options.clock_topics_all or message.topic in self.clock_topics):
                 self._publish_clock(message.log_time_ns)

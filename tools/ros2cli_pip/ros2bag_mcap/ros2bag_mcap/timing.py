@@ -76,6 +76,17 @@ def bag_time_ns(elapsed_s: float, start_ns: int, rate: float) -> int:
     return int(start_ns) + int(round(max(0.0, elapsed_s) * rate * NS_PER_S))
 
 
+def clock_stamp_ns(elapsed_s: float, start_ns: int, rate: float, next_due_ns: int) -> int:
+    """
+    Return what /clock says elapsed_s after the pass origin, the next message not out.
+
+    The bag time, but never past the next message's log time: a player that woke late
+    (a loaded machine) would otherwise say a time no message of the bag has reached yet,
+    past the bag's end before the last one (seen: 91 ms past a 0.7 s bag).
+    """
+    return min(bag_time_ns(elapsed_s, start_ns, rate), int(next_due_ns))
+
+
 def pass_schedule(log_times_ns: Sequence[int], start_ns: int, rate: float,
                   until_ns: int = NO_LIMIT) -> List[Tuple[int, float]]:
     """

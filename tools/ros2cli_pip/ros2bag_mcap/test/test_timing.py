@@ -1,8 +1,8 @@
 """When play publishes each message and what /clock says: cases worked out by hand."""
 
 import pytest
-from ros2bag_mcap.timing import (bag_time_ns, check_rate, clock_period_s, due_offset_s,
-                                 loop_schedule, next_tick_s, NO_LIMIT, pass_schedule,
+from ros2bag_mcap.timing import (bag_time_ns, check_rate, clock_period_s, clock_stamp_ns,
+                                 due_offset_s, loop_schedule, next_tick_s, NO_LIMIT, pass_schedule,
                                  play_until_ns, playback_start_ns, shall_stop)
 
 S = 10 ** 9
@@ -107,3 +107,12 @@ def test_bad_rates_are_refused(rate):
 def test_bad_clock_frequencies_are_refused(hz):
     with pytest.raises(ValueError, match='clock frequency'):
         clock_period_s(hz)
+
+
+def test_the_clock_never_passes_the_next_message():
+    start = 10 * S
+    # On time: the bag time.
+    assert clock_stamp_ns(0.3, start, 1.0, start + 700 * MS) == start + 300 * MS
+    # Woken 91 ms after the last message (0.7 s) was due: still its time, not past the bag.
+    assert clock_stamp_ns(0.791, start, 1.0, start + 700 * MS) == start + 700 * MS
+    assert clock_stamp_ns(0.5, start, 2.0, start + 700 * MS) == start + 700 * MS
