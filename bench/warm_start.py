@@ -30,21 +30,12 @@ import sys
 import tempfile
 import time
 
+from full_stack import cpu_seconds   # bench/, this script's folder
 from mecanum_bringup import scenario_runner
 from mecanum_bringup.scenario_loader import load_scenario
 from mecanum_bringup.scenario_runner import release_kept_system, run_scenario, RunOptions
 
 REPO = Path(__file__).resolve().parents[1]
-TICKS_PER_S = os.sysconf('SC_CLK_TCK')
-
-
-def cpu_seconds(pid: int) -> float:
-    """Return the user + system CPU seconds of a process (0 when gone)."""
-    try:
-        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / TICKS_PER_S
 
 
 class StartMeter:

@@ -125,7 +125,6 @@ class Supervisor:
                  reloadable: bool = False):
         self._out = out
         self.reloadable = reloadable
-        self.system = system
         #: Reload commands (node_reload's words: ('unload', None), ('load', document)).
         self.commands: 'queue.Queue[tuple]' = queue.Queue()
         self._unloaded = False
@@ -145,9 +144,8 @@ class Supervisor:
         self.nodes: List[ManagedNode] = []
         for spec in system.nodes:
             executable = find_executable(spec.package, spec.executable, base_env)
-            command = [*spec.launch_prefix, str(executable), *spec.arguments, *spec.ros_args()]
+            command = [*spec.launch_prefix, str(executable), *process_arguments(spec)]
             self.nodes.append(ManagedNode(spec, command, dict(base_env, **spec.env)))
-        self._base_env = base_env
 
     def say(self, label: str, text: str) -> None:
         """Print one line with a ``[label]`` prefix, whole even with many writers."""
@@ -306,12 +304,10 @@ class Supervisor:
                 raise SystemDescriptionError('expected {"launch_file": ..., "compose": ..., '
                                              '"composition": ...}')
             path = Path(document['launch_file'])
-            system = load_system(path, {})
-            if document.get('compose'):
-                composition = document.get('composition')
-                system = compose(system, load_composition(
-                    Path(composition) if composition else default_composition_file()))
-            commands = [[*spec.arguments, *spec.ros_args()] for spec in system.nodes]
+            composition = document.get('composition')
+            system = build_system(path, {}, bool(document.get('compose')),
+                                  Path(composition) if composition else None)
+            commands = [process_arguments(spec) for spec in system.nodes]
         except (SystemDescriptionError, LookupError, OSError) as error:
             self.say('runner', f'reload refused: {error}')
             return False
@@ -334,7 +330,6 @@ class Supervisor:
         if problem is not None:
             self.say('runner', f'reload failed: {problem}')
             return False
-        self.system = system
         self._unloaded = False
         self.say('runner', f'loaded {path.name}: ' + ', '.join(n.spec.label for n in self.nodes))
         return True
@@ -396,6 +391,20 @@ def default_composition_file() -> Path:
     return Path(default_find_package_share('mecanum_bringup')) / 'config' / 'composition.yaml'
 
 
+def build_system(path: Path, arguments: Dict[str, str], composed: bool,
+                 composition: Optional[Path] = None) -> System:
+    """Load the launch file's system; with composed, grouped into containers (composition)."""
+    system = load_system(path, arguments)
+    if composed:
+        system = compose(system, load_composition(composition or default_composition_file()))
+    return system
+
+
+def process_arguments(spec: NodeProcess) -> List[str]:
+    """Return what follows the executable on a node process's command line."""
+    return [*spec.arguments, *spec.ros_args()]
+
+
 def domain_words(environ: Dict[str, str], isolated: bool) -> str:
     """
     Return e.g. 'ROS_DOMAIN_ID=7 (leased: this system alone)' for the start-up line.
@@ -441,10 +450,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         file_name = rest.pop(0)
     try:
         path = resolve_launch_file(options.package_or_path, file_name)
-        system = load_system(path, parse_launch_arguments(rest))
-        if options.compose:
-            system = compose(system, load_composition(
-                options.composition or default_composition_file()))
+        system = build_system(path, parse_launch_arguments(rest), options.compose,
+                              options.composition)
     except (SystemDescriptionError, LookupError) as error:
         print(f'[runner] error: {error}', file=sys.stderr)
         return 2

@@ -29,13 +29,12 @@ import inspect
 import json
 import os
 import sys
-import threading
 from typing import Dict, List, Optional, Tuple
 
 from mecanum_control import node_reload
 from mecanum_control.node_main import (
-    close_node, close_watchdog, leave_process, raise_keyboard_interrupt_on_signals,
-    spin_waking, TEARDOWN_VARIABLE)
+    close_node, leave_process, raise_keyboard_interrupt_on_signals, spin_waking,
+    TEARDOWN_VARIABLE, unload_and_wait)
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -159,12 +158,8 @@ def main(argv: Optional[List[str]] = None) -> int:
             if until is None or not until.is_set():
                 break
             # A reload: these nodes go, new ones come from the next load's arguments.
-            with close_watchdog('node_container'):
-                for node in reversed(nodes):
-                    close_node(node)
-            nodes = []
-            node_reload.say(node_reload.UNLOADED_LINE)
-            argv = channel.next_load(threading.Event())
+            closing, nodes = nodes, []
+            argv = unload_and_wait('node_container', closing, channel)
             if argv is None:
                 break
             reloading = True

@@ -776,13 +776,11 @@ def _system_for(launch_file: Path, run_dir: Path, compose: bool,
 
 def _keep_or_stop(system: SystemProcess, lease, keep: bool) -> None:
     """After a run: keep the system for the next run (unloaded), or stop it."""
+    kept = KeptSystem(system, lease)
     if keep and system.alive() and system.unload():
-        _KEPT['system'] = KeptSystem(system, lease)
-        return
-    try:
-        system.stop()
-    finally:
-        lease.release()
+        _KEPT['system'] = kept
+    else:
+        kept.close()
 
 
 def _wait_until_ready(scenario: Scenario, system: SystemProcess, driver,

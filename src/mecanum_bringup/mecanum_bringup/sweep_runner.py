@@ -508,9 +508,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--record', action='store_true',
                         help='record every topic of every run (DIR/runs/NAME/bag)')
     parser.add_argument('--cold', action='store_true',
-                        help="start every variant's processes anew (default, but on Ray: "
-                        'a variant reuses those of the one before it in the same worker, '
-                        'with new nodes; see run_scenarios)')
+                        help="start every variant's processes anew (by default, except "
+                        'on Ray, a variant reuses those of the one before it in the same '
+                        'process or worker, with new nodes; see run_scenarios)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
     args = parser.parse_args(argv)
     if args.jobs < 1:

@@ -563,7 +563,7 @@ def run_node(node_factory: Callable[..., Node], name: str,
             return 0
         if node_args is not None:
             node_reload.say(node_reload.LOADED_LINE)
-        interrupted = True
+        unloading = False   # True: the spin ended for a reload's unload, not for good
         try:
             if spin is None:
                 spin_waking(node, until=until)
@@ -571,11 +571,11 @@ def run_node(node_factory: Callable[..., Node], name: str,
                 spin(node)
             else:
                 spin(node, until=until)
-            interrupted = False
+            unloading = until is not None and until.is_set()
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
-            if interrupted or until is None or not until.is_set():
+            if not unloading:
                 # Ctrl-C in a terminal under ros2 launch reaches each node twice (the
                 # terminal's SIGINT to the process group, then launch's own): the second
                 # must not cut the close short with a traceback. SIGTERM (launch's
@@ -584,9 +584,9 @@ def run_node(node_factory: Callable[..., Node], name: str,
                 with close_watchdog(name):
                     close_node(node)
                     rclpy.try_shutdown()
-        if interrupted or until is None or not until.is_set():
+        if not unloading:
             break
-        node_args = _reload(name, node, channel)
+        node_args = unload_and_wait(name, [node], channel)
         if node_args is None:
             rclpy.try_shutdown()
             break
@@ -596,10 +596,15 @@ def run_node(node_factory: Callable[..., Node], name: str,
     return 0
 
 
-def _reload(name: str, node: Node, channel) -> Optional[List[str]]:
-    """Close node for a reload, answer, and wait for the next load's arguments (None: end)."""
+def unload_and_wait(name: str, nodes: Sequence[Node], channel) -> Optional[List[str]]:
+    """
+    Close the nodes for a reload (last first), answer, wait for the next load.
+
+    Return that load's arguments; None: the channel ended or Ctrl-C (the process ends).
+    """
     with close_watchdog(name):
-        close_node(node)
+        for node in reversed(nodes):
+            close_node(node)
     node_reload.say(node_reload.UNLOADED_LINE)
     try:
         return channel.next_load(threading.Event())
