@@ -40,6 +40,7 @@ from typing import Callable, Dict, Iterator, List, NoReturn, Optional, Sequence,
 
 from mecanum_control import node_reload
 import rclpy
+from rclpy.action import ActionClient, ActionServer
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -117,10 +118,12 @@ def close_node(node: Node) -> None:
     """
     Run the node's ``close()`` if it has one (errors logged, not raised), then destroy it.
 
-    Its waitables (action servers and clients) are destroyed first: rclpy's destroy_node
-    leaves them, and each holds the node's handle, so the node (its name in the graph,
-    its action servers) lived on until garbage collection; a reload then had two
-    /navigator nodes, the old one still serving navigate_to_pose.
+    Its action servers and clients are destroyed first: rclpy's destroy_node leaves
+    them, and each holds the node's handle, so the node (its name in the graph, its
+    action servers) lived on until garbage collection; a reload then had two /navigator
+    nodes, the old one still serving navigate_to_pose. The other waitables (the QoS
+    event handlers of its publishers and subscriptions) go with those, in destroy_node,
+    as rclpy orders it.
     """
     close = getattr(node, 'close', None)
     if close is not None:
@@ -129,9 +132,8 @@ def close_node(node: Node) -> None:
         except Exception as error:  # noqa: B902 - report, then still clean up
             node.get_logger().error(f'close failed: {error}')
     for waitable in list(node.waitables):
-        destroy = getattr(waitable, 'destroy', None)
-        if destroy is not None:
-            destroy()
+        if isinstance(waitable, (ActionClient, ActionServer)):
+            waitable.destroy()
     node.destroy_node()
 
 
