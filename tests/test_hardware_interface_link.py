@@ -295,6 +295,32 @@ def test_clear_board_faults_service_sends_the_request(link_setup):
     assert board.frames(proto.MotorEfforts)[-1].message.efforts == (0.0, 0.0, 0.0, 0.0)
 
 
+def test_on_simulated_time_the_board_is_opened_at_the_first_clock(ros_env, test_node,
+                                                                  tmp_path):
+    """
+    The simulator's first /clock messages (0 s, then 0.02 s) open the board at once.
+
+    Not reconnect_period_s (0.3 s here) of simulated time later: until the board
+    answers, the simulator runs at real time at most, so each scenario run waited that
+    long on the wall clock. No later /clock is sent here: the board opens on these two.
+    """
+    link = tmp_path / 'ttyESP32'
+    board = ScriptedBoard(link)
+    host = HostProcess(ros_env, link, 'use_sim_time:=true', 'link_clock:=ros')
+    try:
+        clock = test_node.node.create_publisher(Clock, '/clock', 10)
+        host.wait_for(r'Waiting for the first /clock message .*: 1 publisher\(s\) of /clock')
+        deadline = time.monotonic() + 10.0
+        while clock.get_subscription_count() == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)    # both ends matched: neither message is lost
+        clock.publish(Clock(clock=Time(sec=0)))
+        clock.publish(Clock(clock=Time(sec=0, nanosec=20_000_000)))
+        host.wait_for('Connected to the board')
+    finally:
+        host.stop()
+        board.close()
+
+
 def test_on_simulated_time_the_board_is_opened_after_the_first_clock(ros_env, test_node,
                                                                      tmp_path):
     link = tmp_path / 'ttyESP32'

@@ -74,6 +74,8 @@ from std_srvs.srv import Trigger
 ZERO_EFFORTS = (0.0, 0.0, 0.0, 0.0)
 #: Wall-clock seconds between warnings while simulated time has not started.
 CLOCK_WAIT_REPORT_S = 2.0
+#: Period (simulated s) of the one-shot timer that opens the board at the first /clock.
+FIRST_CONNECT_PERIOD_S = 0.001
 #: Longest wait of the serial reader for data before it looks at its stop flag again (s).
 READ_WAIT_S = 0.05
 #: Link seconds a lock held by this very process is taken for the last connection still
@@ -205,8 +207,14 @@ class HardwareInterface(Node):
                                             clock=self._link_clock)
         # On simulated time nothing above runs before the first /clock: say so, on the
         # wall clock, if it does not come (and whether anyone publishes /clock at all).
+        # The board is opened at the first /clock, not reconnect_period_s later: until
+        # the board answers, the simulator runs at real time at most (its lockstep waits
+        # for the board), so every run of a scenario waited 0.5 s of wall time for it.
         self.clock_wait_timer = None
+        self.first_connect_timer = None
         if link_clock == 'ros':
+            self.first_connect_timer = self.create_timer(
+                FIRST_CONNECT_PERIOD_S, self._connect_at_first_clock, clock=self._link_clock)
             self.clock_wait_timer = self.create_timer(
                 CLOCK_WAIT_REPORT_S, self.report_clock_wait,
                 clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -217,6 +225,11 @@ class HardwareInterface(Node):
                                f'(protocol v{proto.PROTOCOL_VERSION})')
         self.connect()
         read_only_parameters(self)
+
+    def _connect_at_first_clock(self) -> None:
+        """Open the board once simulated time has started (once; then the reconnect timer)."""
+        self.first_connect_timer.cancel()
+        self.connect()
 
     def report_clock_wait(self) -> None:
         """Warn while simulated time has not started (no /clock message yet)."""
