@@ -25,10 +25,13 @@ stopped and never ended). The suite restores both to their defaults at start.
 
 import contextlib
 import fcntl
+import json
 import multiprocessing
+import os
 from pathlib import Path
 import signal
 import tempfile
+import time
 import uuid
 
 import pytest
@@ -113,5 +116,34 @@ def pytest_runtest_protocol(item, nextitem):
         yield
         return
     alone = item.get_closest_marker('alone') is not None
+    asked = time.time()
     with run_exclusively(workerinput['testrunuid'], alone):
+        with _timeline_entry(item, workerinput, asked, alone):
+            yield
+
+
+#: A file to which each test appends one JSON line (when set): its worker, when it asked
+#: to run, started and ended (wall s) and the CPU seconds of the processes it started
+#: and waited for. tools/test_timeline.py reads it (where a suite's time goes).
+TIMELINE_VARIABLE = 'MECANUM_TEST_TIMELINE'
+
+
+@contextlib.contextmanager
+def _timeline_entry(item, workerinput: dict, asked: float, alone: bool):
+    """Append item's line to $MECANUM_TEST_TIMELINE after it ran (nothing when unset)."""
+    path = os.environ.get(TIMELINE_VARIABLE)
+    if not path:
         yield
+        return
+    start, times = time.time(), os.times()
+    try:
+        yield
+    finally:
+        after = os.times()
+        entry = {'test': item.nodeid, 'worker': workerinput.get('workerid'),
+                 'alone': alone, 'asked': asked, 'start': start, 'end': time.time(),
+                 'cpu_s': after.user + after.system - times.user - times.system,
+                 'children_cpu_s': (after.children_user + after.children_system
+                                    - times.children_user - times.children_system)}
+        with open(path, 'a') as handle:
+            handle.write(json.dumps(entry) + '\n')
