@@ -527,3 +527,41 @@ def test_a_jump_of_the_localisation_stops_until_the_pose_is_set(start_system, te
     finally:
         robot.stop()
     assert 'Traceback' not in system.output()
+
+
+def test_the_scenario_runner_hears_whether_the_zone_guard_has_a_pose(
+        start_system, test_node, ros_env, tmp_path):
+    """
+    The runner starts a scenario's first step only once the zone guard has a pose.
+
+    It reads the guard's /diagnostics (ScenarioDriver.zone_guard_pose): without /tf the
+    guard says why it has none, with map -> odom -> base_link it gives the pose. A first
+    text command once went out before the guard's process had amcl's transform and was
+    stopped ('no transform map -> base_link').
+    """
+    from mecanum_bringup.scenario_driver import ScenarioDriver
+    zone_file = tmp_path / 'zone.yaml'
+    zone_file.write_text(SQUARE)
+    test_node.start_clock()
+    system = start_system(str(write_launch(tmp_path, str(zone_file))))
+    system.wait_for_line(r'\[zone_guard\].*Zone guard started')
+    driver = ScenarioDriver(int(ros_env['ROS_DOMAIN_ID']))
+    robot = Robot(test_node)
+    robot.start()
+    try:
+        def heard(prefix: str) -> bool:
+            deadline = time.monotonic() + 20.0
+            while time.monotonic() < deadline:
+                if (driver.zone_guard_pose() or '').startswith(prefix):
+                    return True
+                time.sleep(0.05)
+            return False
+
+        assert heard('no pose: no transform map -> base_link'), driver.zone_guard_pose()
+        robot.pose = (2.0, 2.0, 0.0)
+        assert heard('(2.00, 2.00, 0.00)'), driver.zone_guard_pose()
+        driver.stop_watching_diagnostics()
+    finally:
+        robot.stop()
+        driver.close()
+    assert 'Traceback' not in system.output()

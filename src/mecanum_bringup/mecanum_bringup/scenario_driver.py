@@ -40,10 +40,12 @@ import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from mecanum_bringup.scenario_loader import command_sources
 from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.node_main import make_executor
+from mecanum_safety import zone_guard
 from nav2_msgs.action import FollowWaypoints, NavigateToPose
 from nav_msgs.msg import Odometry, Path
 import numpy as np
@@ -133,6 +135,10 @@ class ScenarioDriver:
                 self._on_chain_state, topic.replace('_state', '')), 20)
         node.create_subscription(String, MUX_STATE_TOPIC, functools.partial(
             self._on_chain_state, 'twist_mux'), latched)
+        # Until the first step: the pose the zone guard guards with (its /diagnostics).
+        self._zone_guard_pose: Optional[str] = None
+        self._diagnostics = node.create_subscription(
+            DiagnosticArray, '/diagnostics', self._on_diagnostics, 50)
         self._twist_pubs = {topic: node.create_publisher(Twist, topic, 10)
                             for topic in command_sources().values()}
         self.command_pub = node.create_publisher(String, 'control_command', 10)
@@ -360,6 +366,29 @@ class ScenarioDriver:
         """Return amcl's estimates so far as (N, 4) t, x, y, yaw."""
         with self._lock:
             return np.array(self._estimate, dtype=np.float64).reshape(-1, 4)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name == zone_guard.DIAGNOSTIC_NAME:
+                pose = next((pair.value for pair in status.values
+                             if pair.key == zone_guard.DIAGNOSTIC_POSE_KEY), None)
+                with self._lock:
+                    self._zone_guard_pose = pose
+
+    def zone_guard_pose(self) -> Optional[str]:
+        """
+        Return the zone guard's last word on its pose (None: nothing heard yet).
+
+        '(x, y, yaw)': it has map -> base_link, fresh; else why not ('no pose: ...').
+        """
+        with self._lock:
+            return self._zone_guard_pose
+
+    def stop_watching_diagnostics(self) -> None:
+        """Drop the /diagnostics subscription (every node's, once a second: not needed)."""
+        if self._diagnostics is not None:
+            self.node.destroy_subscription(self._diagnostics)
+            self._diagnostics = None
 
     def plans(self) -> List[np.ndarray]:
         """Return the first global plan (K, 2) of every goal."""

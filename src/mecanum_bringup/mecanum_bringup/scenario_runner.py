@@ -803,6 +803,16 @@ def _wait_until_ready(scenario: Scenario, system: SystemProcess, driver,
     _wait_for(lambda: len(driver.estimate_track()) > 0, system, deadline,
               lambda: 'no localisation estimate on amcl_pose (is amcl running, with its '
                       'initial pose?)', 0.05)
+    # The zone guard has a pose: it needs map -> base_link (amcl's map -> odom and the
+    # EKF's odom -> base_link) in its own process, whose /tf reader may match amcl's
+    # writer later than the runner heard amcl_pose (a loaded machine: the first text
+    # command was stopped, 'no transform map -> base_link', 1 s of simulated time after
+    # the runner had seen amcl's estimate). It says so on /diagnostics once a second.
+    if scenario.authorised_zone is not None:
+        _wait_for(lambda: (driver.zone_guard_pose() or '').startswith('('), system,
+                  deadline, lambda: 'the zone guard has no pose to guard the zone with ('
+                  f'its /diagnostics: {driver.zone_guard_pose() or "nothing yet"})', 0.05)
+    driver.stop_watching_diagnostics()
     if any(isinstance(step, CommandStep) for step in scenario.steps):
         driver.reach_robot_controller(lambda: _check(system))
 

@@ -76,6 +76,10 @@ import numpy as np
 Pose = Tuple[float, float, float]
 Twist2D = Tuple[float, float, float]
 
+#: The zone guard node's /diagnostics status name, and the key of its value saying the
+#: pose it guards with: '(x, y, yaw)' in the map frame, or why there is none.
+DIAGNOSTIC_NAME = 'zone_guard: Authorised zone'
+DIAGNOSTIC_POSE_KEY = 'pose'
 #: Largest travel (m) of the footprint centre between two samples of a predicted path.
 SAMPLE_STEP_M = 0.01
 #: Largest heading change (rad) between two samples (tight arcs bend between samples).

@@ -112,7 +112,7 @@ UNRESTRICTED = 'unrestricted'
 #: Messages taken on one pose-covariance subscription and not yet heard on the other,
 #: remembered to take each once (a volatile publisher never reaches the other one).
 PENDING_COVARIANCES = 8
-DIAGNOSTIC_NAME = 'zone_guard: Authorised zone'
+DIAGNOSTIC_NAME = guard.DIAGNOSTIC_NAME
 NO_ZONE_FILE = ('no zone file: give zone_file:=<zone file> (see mecanum_safety/zones) or '
                 'zone_file:=unrestricted')
 #: The guard's settings (run-time parameters, checked together by guard.ZoneGuard).
@@ -549,13 +549,13 @@ class ZoneGuardNode(Node):
             if self.localisation is not None and level == DiagnosticStatus.OK:
                 level, message = DiagnosticStatus.WARN, health
             if pose is None:
-                values.append(KeyValue(key='pose', value=reason))
+                values.append(KeyValue(key=guard.DIAGNOSTIC_POSE_KEY, value=reason))
                 if level == DiagnosticStatus.OK:
                     level, message = DiagnosticStatus.WARN, reason
             else:
                 clearance = float(self.guard.zone.clearance([pose[0]], [pose[1]])[0])
-                values += [KeyValue(key='pose', value=f'({pose[0]:.2f}, {pose[1]:.2f}, '
-                                                      f'{pose[2]:.2f})'),
+                values += [KeyValue(key=guard.DIAGNOSTIC_POSE_KEY,
+                                    value=f'({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.2f})'),
                            KeyValue(key='distance to the border (m)',
                                     value=f'{clearance - self.guard.footprint_radius_m:.3f}')]
             values += [KeyValue(key='sigma_xy (m)', value=f'{self.sigma_xy_m:.3f}'),
