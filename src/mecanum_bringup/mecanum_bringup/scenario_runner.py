@@ -92,6 +92,7 @@ from mecanum_bringup.scenario_model import (
     WaitStep, WaypointsStep)
 from mecanum_bringup.scenario_report import (
     junit_xml, plot_run, results_table, ScenarioResult, summary_json)
+from mecanum_safety import zone_guard
 from mecanum_safety.zone import zone_file_text
 import numpy as np
 from robot_simulation.faults import FaultSpec, SIMULATOR
@@ -809,7 +810,7 @@ def _wait_until_ready(scenario: Scenario, system: SystemProcess, driver,
     # command was stopped, 'no transform map -> base_link', 1 s of simulated time after
     # the runner had seen amcl's estimate). It says so on /diagnostics once a second.
     if scenario.authorised_zone is not None:
-        _wait_for(lambda: (driver.zone_guard_pose() or '').startswith('('), system,
+        _wait_for(lambda: zone_guard.pose_diagnostic_known(driver.zone_guard_pose()), system,
                   deadline, lambda: 'the zone guard has no pose to guard the zone with ('
                   f'its /diagnostics: {driver.zone_guard_pose() or "nothing yet"})', 0.05)
     driver.stop_watching_diagnostics()

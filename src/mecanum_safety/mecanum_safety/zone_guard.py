@@ -158,6 +158,16 @@ class GuardResult:
         return self.clearance_m - footprint_radius_m
 
 
+def pose_diagnostic(pose: Tuple[float, float, float]) -> str:
+    """Return the DIAGNOSTIC_POSE_KEY value of a known pose (x m, y m, yaw rad; map)."""
+    return f'({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.2f})'
+
+
+def pose_diagnostic_known(value: Optional[str]) -> bool:
+    """Tell whether a DIAGNOSTIC_POSE_KEY value gives a pose (not why there is none)."""
+    return bool(value) and value.startswith('(')
+
+
 def integrate_twists(pose: Pose, vx: float, vy: float, wz: float,
                      times_s: Union[Sequence[float], np.ndarray]
                      ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -555,7 +555,7 @@ class ZoneGuardNode(Node):
             else:
                 clearance = float(self.guard.zone.clearance([pose[0]], [pose[1]])[0])
                 values += [KeyValue(key=guard.DIAGNOSTIC_POSE_KEY,
-                                    value=f'({pose[0]:.2f}, {pose[1]:.2f}, {pose[2]:.2f})'),
+                                    value=guard.pose_diagnostic(pose)),
                            KeyValue(key='distance to the border (m)',
                                     value=f'{clearance - self.guard.footprint_radius_m:.3f}')]
             values += [KeyValue(key='sigma_xy (m)', value=f'{self.sigma_xy_m:.3f}'),

@@ -670,3 +670,12 @@ def test_a_jump_within_three_sigma_of_an_unsure_estimate_is_convergence():
 def test_bad_jump_thresholds_are_refused_by_name(arguments, name):
     with pytest.raises(ValueError, match=name):
         guard.LocalisationJumps(*arguments)
+
+
+def test_the_pose_on_diagnostics_is_written_and_read_back_as_one_contract():
+    # The zone guard node writes it; the scenario runner waits until it reads a pose.
+    assert guard.pose_diagnostic((2.0, -1.25, 0.5)) == '(2.00, -1.25, 0.50)'
+    assert guard.pose_diagnostic_known(guard.pose_diagnostic((0.0, 0.0, 0.0)))
+    assert not guard.pose_diagnostic_known('no pose: no transform map -> base_link yet')
+    assert not guard.pose_diagnostic_known('')
+    assert not guard.pose_diagnostic_known(None)
