@@ -10,8 +10,9 @@ Run the suite with the timeline on, then read it::
 Each line of the file is one test (conftest.py `_timeline_entry`): its worker, when it
 asked to run, started and ended (wall s since the epoch), the CPU seconds of the worker
 itself and of the processes it started and waited for. Printed: the run's span and how
-many tests ran at once through it (seconds with 0, 1, 2, ... running), the time only
-``alone`` tests ran, and the files with the most wall time and the most CPU.
+many tests ran at once through it (seconds with 0, 1, 2, ... running), the time
+``alone`` tests ran and the time workers waited for them (the run's lock), and the files
+with the most wall time and the most CPU.
 """
 
 import argparse
@@ -74,8 +75,10 @@ def main(argv=None) -> int:
     span = max(e['end'] for e in entries) - min(e['start'] for e in entries)
     cpu = sum(e.get('cpu_s', 0.0) + e.get('children_cpu_s', 0.0) for e in entries)
     alone = sum(e['end'] - e['start'] for e in entries if e.get('alone'))
+    waited = sum(e['start'] - e.get('asked', e['start']) for e in entries)
     print(f'{len(entries)} tests in {span:.0f} s of wall time; {cpu:.0f} CPU s in tests '
-          f'and the processes they waited for; alone tests {alone:.0f} s')
+          f'and the processes they waited for; alone tests {alone:.0f} s; workers waited '
+          f'{waited:.0f} s for the run lock (an alone test running or waiting)')
     print('\n| tests running at once | wall s | share |\n|---|---|---|')
     for running, seconds in sorted(concurrency_seconds(entries).items()):
         print(f'| {running} | {seconds:.0f} | {100 * seconds / span:.0f} % |')
