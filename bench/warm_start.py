@@ -46,6 +46,7 @@ class StartMeter:
         self.called_at = 0.0
         self.up_s = None
         self.start_cpu_s = None
+        self._pids = []           # the system's processes (launch runner first)
         self._end_cpu = {}        # pid -> CPU s at the end of the last run's steps
 
     def begin(self) -> None:
@@ -56,10 +57,9 @@ class StartMeter:
         """Take the numbers when the system is up (system) or the steps end (None)."""
         if system is not None:
             self.up_s = time.monotonic() - self.called_at
-            pids = [system.process.pid, *system.node_pids().values()]
-            self._pids = pids
+            self._pids = [system.process.pid, *system.node_pids().values()]
             self.start_cpu_s = sum(cpu_seconds(pid) - self._end_cpu.get(pid, 0.0)
-                                   for pid in pids)
+                                   for pid in self._pids)
         else:
             self._end_cpu = {pid: cpu_seconds(pid) for pid in self._pids}
 
