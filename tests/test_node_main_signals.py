@@ -270,3 +270,55 @@ def test_a_node_process_leaves_without_teardown_but_loses_nothing(ros_env, tmp_p
     assert late_file.read_text() == 'written'
     assert 'unflushed lineexit function ran' in stdout
     assert 'Traceback' not in stderr
+
+
+CONTAINER = textwrap.dedent('''
+    import sys
+    import time
+
+    from mecanum_bringup import node_container
+    from rclpy.node import Node
+
+
+    class HangingClose(Node):
+        def __init__(self, **node_options):
+            super().__init__('hanging_close', **node_options)
+            self.timer = self.create_timer(0.05, self.on_timer)
+
+        def on_timer(self):
+            self.timer.cancel()
+            print('up', flush=True)     # spinning: the container's close path is next
+
+        def close(self):
+            print('closing', flush=True)
+            time.sleep(30.0)
+
+
+    node_container.node_class = lambda package, executable: HangingClose
+    sys.exit(node_container.main(
+        ['[{"label": "hanging_close", "package": "p", "executable": "e"}]']))
+''')
+
+
+def test_a_container_whose_close_hangs_is_left_after_the_close_timeout(ros_env, tmp_path):
+    """
+    node_container ends as run_node does: a close stuck for 30 s is left after CLOSE_TIMEOUT_S.
+
+    Its own close once had no watchdog: a container stuck in DDS at its end stayed
+    running, orphaned, after its launch runner had gone (test_sweeps' Ray run).
+    """
+    from mecanum_control.node_main import CLOSE_TIMEOUT_S
+    script = tmp_path / 'container.py'
+    script.write_text(CONTAINER)
+    process = subprocess.Popen([sys.executable, str(script)], env=ros_env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'up'
+        process.send_signal(signal.SIGTERM)
+        assert process.stdout.readline().strip() == 'closing'
+        stdout, stderr = process.communicate(timeout=CLOSE_TIMEOUT_S + 10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr
+    assert f'closing took more than {CLOSE_TIMEOUT_S:g} s' in stderr

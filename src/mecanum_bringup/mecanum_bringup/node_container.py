@@ -33,8 +33,8 @@ from typing import Dict, List, Optional, Tuple
 
 from mecanum_control import node_reload
 from mecanum_control.node_main import (
-    close_node, leave_process, raise_keyboard_interrupt_on_signals, spin_waking,
-    TEARDOWN_VARIABLE, unload_and_wait)
+    close_for_good, close_node, close_watchdog, leave_process,
+    raise_keyboard_interrupt_on_signals, spin_waking, TEARDOWN_VARIABLE, unload_and_wait)
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -172,11 +172,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        for node in reversed(nodes):
-            close_node(node)
-        rclpy.try_shutdown()
+        close_for_good('node_container', nodes)
     if os.environ.get(TEARDOWN_VARIABLE, '') != 'full':
-        leave_process(0)   # without the interpreter's teardown (node_main.leave_process)
+        with close_watchdog('node_container'):
+            leave_process(0)   # without the interpreter's teardown (node_main.leave_process)
     return 0
 
 

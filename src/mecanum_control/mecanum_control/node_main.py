@@ -580,14 +580,7 @@ def run_node(node_factory: Callable[..., Node], name: str,
             pass
         finally:
             if not unloading:
-                # Ctrl-C in a terminal under ros2 launch reaches each node twice (the
-                # terminal's SIGINT to the process group, then launch's own): the second
-                # must not cut the close short with a traceback. SIGTERM (launch's
-                # escalation) still interrupts.
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
-                with close_watchdog(name):
-                    close_node(node)
-                    rclpy.try_shutdown()
+                close_for_good(name, [node])
         if not unloading:
             break
         node_args = unload_and_wait(name, [node], channel)
@@ -598,6 +591,22 @@ def run_node(node_factory: Callable[..., Node], name: str,
         with close_watchdog(name):
             leave_process(0)
     return 0
+
+
+def close_for_good(name: str, nodes: Sequence[Node]) -> None:
+    """
+    Close the nodes (last first) and shut rclpy down: the process is ending.
+
+    Within close_watchdog (a close stuck in rclpy or DDS does not keep the process).
+    Ctrl-C in a terminal under ros2 launch reaches each node twice (the terminal's
+    SIGINT to the process group, then launch's own): the second must not cut the close
+    short with a traceback. SIGTERM (launch's escalation) still interrupts.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with close_watchdog(name):
+        for node in reversed(nodes):
+            close_node(node)
+        rclpy.try_shutdown()
 
 
 def unload_and_wait(name: str, nodes: Sequence[Node], channel) -> Optional[List[str]]:
