@@ -40,12 +40,12 @@ def status(unexpected: str) -> DiagnosticArray:
 class Feed:
     """Wheels standing still at 50 Hz, a 10 rad/s target at 20 Hz, the status at 2 Hz."""
 
-    def __init__(self, test_node):
+    def __init__(self, test_node, unexpected: str = '(an endpoint of no known ROS node)'):
         node = test_node.node
         self.joints = node.create_publisher(JointState, 'joint_states', 10)
         self.targets = node.create_publisher(Float32MultiArray, 'motor_speeds', 10)
         self.diagnostics = node.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.unexpected = '(an endpoint of no known ROS node)'
+        self.unexpected = unexpected
         self.statuses_sent = 0
         self._stop = threading.Event()
         self._clock = node.get_clock()
@@ -100,6 +100,34 @@ def test_no_stall_is_judged_while_hardware_interface_holds_the_board(controller,
         # wheels still standing, the stall is judged again (the latch was only held off).
         feed.unexpected = ''
         controller.wait_until(lambda: node._board_held_until is None)
+        efforts.wait_for_new(lambda m: max(m.data) > 0.3, timeout=10.0)
+        controller.wait_until(lambda: all(s.stalled for s in node.stall_detectors))
+    finally:
+        feed.stop()
+
+
+def test_no_stall_is_judged_while_nobody_takes_the_efforts(controller, test_node):
+    """
+    A controller whose motor_efforts has no subscriber holds its loops and judges no stall.
+
+    After a double respawn of velocity_controller (test_command_chain_faults, CI
+    2026-11-29), the new controller latched all four wheels as stalled 0.4 s after it
+    became active: its inputs had matched, hardware_interface had not yet matched its
+    motor_efforts, so no effort reached the board and the wheels stood still. Here the
+    board holds nothing (hardware_interface says so) and nobody subscribes to
+    motor_efforts for 1 s of measurements (stall_time_s 0.3 s): no stall; then a
+    subscriber comes, the wheels still stand, and the stall is judged.
+    """
+    node = controller.node
+    feed = Feed(test_node, unexpected='')
+    try:
+        controller.wait_until(lambda: node.state == 'ok')
+        since = node.measured_time
+        controller.wait_until(lambda: (node.measured_time - since).nanoseconds > 1e9)
+        assert not any(stall.stalled for stall in node.stall_detectors), (
+            'a stall latched while no subscriber took the efforts')
+        assert node.efforts == [0.0] * 4
+        efforts = test_node.record(Float32MultiArray, 'motor_efforts')
         efforts.wait_for_new(lambda m: max(m.data) > 0.3, timeout=10.0)
         controller.wait_until(lambda: all(s.stalled for s in node.stall_detectors))
     finally:

@@ -16,7 +16,9 @@ mecanum robot goes elsewhere than the command chain judged), and reported, until
 operator calls ``~/clear_wheel_faults`` (std_srvs/Trigger) once the wheel is seen to: an
 automatic retry would drive a robot with a dead encoder again, at full effort, each
 time. Stale targets (``target_timeout_s``) mean zero; stale measurements
-(``measurement_timeout_s``) stop every wheel. Measured wheel speeds beyond
+(``measurement_timeout_s``) stop every wheel. While motor_efforts has no subscriber
+(hardware_interface not matched yet), the loops are held at zero and judge no stall:
+the wheels cannot follow efforts that reach no board. Measured wheel speeds beyond
 ``PLAUSIBLE_SPEED_FACTOR`` x ``max_wheel_speed_rad_s`` are rejected as garbage (the
 message is ignored, so persistent garbage trips the measurement timeout), and a
 non-finite PID output is sent as 0. Gains: ``config/pid_gains.yaml``.
@@ -337,7 +339,19 @@ class VelocityController(Node):
             self.efforts = [0.0] * 4
         else:
             self._set_state('ok')
-            self.efforts = self._run_pids(targets, dt_s)
+            if self.efforts_pub.get_subscription_count() == 0:
+                # Nobody takes the efforts yet (hardware_interface has not matched this
+                # publisher: just after a respawn, discovery takes a moment): the wheels
+                # cannot follow them, so the loops neither push nor judge a stall (a
+                # respawned controller latched all four wheels as stalled before its
+                # first effort reached the board).
+                for pid, stall in zip(self.pids, self.stall_detectors):
+                    pid.reset()
+                    if not stall.stalled:
+                        stall.reset()
+                self.efforts = [0.0] * 4
+            else:
+                self.efforts = self._run_pids(targets, dt_s)
         self.efforts_pub.publish(wheel_array(self.efforts))
 
     def _intruded(self) -> bool:
