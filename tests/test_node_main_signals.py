@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 
@@ -270,6 +271,106 @@ def test_a_node_process_leaves_without_teardown_but_loses_nothing(ros_env, tmp_p
     assert late_file.read_text() == 'written'
     assert 'unflushed lineexit function ran' in stdout
     assert 'Traceback' not in stderr
+
+
+PUBLISHING_NODE = textwrap.dedent('''
+    import ctypes
+    import sys
+
+    from mecanum_control import node_main
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+
+    class Publishing(Node):
+        def __init__(self, **node_options):
+            super().__init__('publishing', **node_options)
+            self.publisher = self.create_publisher(String, 'leaving_topic', 10)
+            self.timer = self.create_timer(0.05, self.on_timer)
+
+        def on_timer(self):
+            self.timer.cancel()
+            print('spinning', flush=True)
+
+
+    if sys.argv[1:] == ['participant_end_hangs']:
+        # As Fast DDS's deadlock in destroy_participant: a C call that never returns
+        # (without the GIL, as release_participant makes it).
+        node_main.finalize_rcl_node = lambda pointer: ctypes.CDLL(None).sleep(600)
+    sys.exit(node_main.run_node(Publishing, 'publishing'))
+''')
+
+
+def graph_until(predicate, timeout_s: float) -> bool:
+    """Wait until predicate() holds (a graph change reaches a peer in a moment)."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_a_node_process_ends_its_participant_last_and_leaves_the_graph(
+        ros_env, tmp_path, test_node):
+    """
+    node_main.hold_participant / release_participant: a hidden node holds the participant.
+
+    The real node's destroy leaves the participant alone; release_participant ends it
+    at the end: a peer sees the node, its publisher and the hidden node leave (the
+    participant said goodbye: had it not, the hidden node would stay until its lease
+    ran out, 20 s).
+    """
+    script = tmp_path / 'publishing_node.py'
+    script.write_text(PUBLISHING_NODE)
+    graph = test_node.node
+
+    def names():
+        return {name for name, _ in graph.get_node_names_and_namespaces()}
+
+    process = subprocess.Popen([sys.executable, str(script)], env=ros_env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    holder = f'_publishing_participant_{process.pid}'
+    try:
+        assert process.stdout.readline().strip() == 'spinning'
+        assert graph_until(lambda: {'publishing', holder} <= names()
+                           and graph.get_publishers_info_by_topic('/leaving_topic'), 20.0), (
+            f'the node, its publisher and {holder} never reached the graph: {names()}')
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=15)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr
+    assert 'WARN' not in stderr, stderr
+    assert graph_until(lambda: not {'publishing', holder} & names()
+                       and not graph.get_publishers_info_by_topic('/leaving_topic'), 10.0), (
+        f'left in the graph after the process ended: {names()}')
+
+
+def test_a_participant_whose_end_hangs_is_left_with_a_warning(ros_env, tmp_path):
+    """
+    A participant's destruction stuck in C code (Fast DDS's deadlock) ends the process.
+
+    release_participant runs it without the GIL, so the close watchdog's thread says
+    where the close was stuck and leaves with exit 0 (the node had closed), instead of
+    faulthandler's exit 1 and stack dump.
+    """
+    script = tmp_path / 'publishing_node.py'
+    script.write_text(PUBLISHING_NODE)
+    process = subprocess.Popen([sys.executable, str(script), 'participant_end_hangs'],
+                               env=ros_env, text=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == 'spinning'
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr
+    assert "stuck in the DDS participant's destruction" in stderr, stderr
+    assert 'Traceback' not in stderr and 'Fatal Python error' not in stderr, stderr
 
 
 CONTAINER = textwrap.dedent('''

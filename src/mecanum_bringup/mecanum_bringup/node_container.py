@@ -33,7 +33,7 @@ from typing import Dict, List, Optional, Tuple
 
 from mecanum_control import node_reload
 from mecanum_control.node_main import (
-    close_for_good, close_node, close_watchdog, leave_process,
+    close_for_good, close_node, close_watchdog, hold_participant, leave_process,
     raise_keyboard_interrupt_on_signals, spin_waking, TEARDOWN_VARIABLE, unload_and_wait)
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -138,6 +138,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 2
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     raise_keyboard_interrupt_on_signals()
+    leaving = os.environ.get(TEARDOWN_VARIABLE, '') != 'full'
+    if leaving:
+        hold_participant('node_container')
     channel = node_reload.reload_channel()
     until = channel.unload_requested if channel is not None else None
     nodes: List[Node] = []
@@ -173,7 +176,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         pass
     finally:
         close_for_good('node_container', nodes)
-    if os.environ.get(TEARDOWN_VARIABLE, '') != 'full':
+    if leaving:
         with close_watchdog('node_container'):
             leave_process(0)   # without the interpreter's teardown (node_main.leave_process)
     return 0

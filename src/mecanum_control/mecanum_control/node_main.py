@@ -29,9 +29,11 @@ machine's load.
 
 import atexit
 from contextlib import contextmanager
+import ctypes
 import faulthandler
 import functools
 import os
+import re
 import signal
 import sys
 import threading
@@ -62,7 +64,7 @@ CLOSE_STUCK_GRACE_S = 1.0
 def _leave_stuck_close(name: str) -> None:
     """Leave the process: its close has taken longer than CLOSE_TIMEOUT_S (a thread)."""
     print(f'[WARN] [{name}]: closing took more than {CLOSE_TIMEOUT_S:g} s (stuck in '
-          'destroy or rclpy shutdown): leaving now', file=sys.stderr, flush=True)
+          f'{_closing_step}): leaving now', file=sys.stderr, flush=True)
     os._exit(0)
 
 
@@ -496,6 +498,74 @@ def release_executor(executor) -> None:
 TEARDOWN_VARIABLE = 'MECANUM_NODE_TEARDOWN'
 
 
+#: The hidden node that holds this process's DDS participant (hold_participant).
+_participant_holder: Optional[Node] = None
+#: What a close is doing, for the close watchdog's message (e.g. the participant's end).
+_closing_step = 'destroy or rclpy shutdown'
+
+
+def hold_participant(name: str) -> None:
+    """
+    Hold the process's DDS participant with a hidden node, for release_participant.
+
+    For a node process that ends with :func:`leave_process`. rmw_fastrtps destroys the
+    participant with the process's last node, and Fast DDS 2.14 can deadlock there while
+    a peer's endpoints are being removed (every process of a system stops at once): gdb
+    of node processes stuck at Ctrl-C (1 stop in 15-30 under load) showed the main thread
+    in rcl_node_fini -> destroy_participant -> DomainParticipant::set_listener, waiting
+    for a discovery callback blocked on a lock held by the thread that waited for it.
+    rclpy's destroy_node keeps the GIL through that, so the close watchdog's thread could
+    not run and faulthandler ended the process with exit 1 and a stack dump. With this
+    node (``_NAME_participant_PID``: hidden, no endpoints, no rosout, no parameter
+    services) the real nodes' destroy never ends the participant; release_participant
+    does, without the GIL. A reload keeps it (the next load needs no new participant).
+    """
+    global _participant_holder
+    if _participant_holder is None:
+        _participant_holder = Node(
+            f'_{re.sub(r"[^A-Za-z0-9_]", "_", name)}_participant_{os.getpid()}',
+            start_parameter_services=False, enable_rosout=False,
+            use_global_arguments=False)
+
+
+def _rcl_node_fini(pointer: int) -> int:
+    """Finalise the rcl node at pointer (rcl_node_fini) without the GIL; return its code."""
+    librcl = ctypes.CDLL('librcl.so')       # loaded already by rclpy: the same library
+    librcl.rcl_node_fini.argtypes = [ctypes.c_void_p]
+    librcl.rcl_node_fini.restype = ctypes.c_int
+    return librcl.rcl_node_fini(pointer)    # ctypes.CDLL calls release the GIL
+
+
+#: How release_participant finalises the holder's rcl node (a test makes it hang).
+finalize_rcl_node: Callable[[int], int] = _rcl_node_fini
+
+
+def release_participant() -> None:
+    """
+    End the DDS participant that hold_participant holds (its node's rcl_node_fini).
+
+    Called once the process's nodes are closed, within close_watchdog: the call runs
+    without the GIL, so when Fast DDS deadlocks in it the watchdog's thread still says so
+    in a WARN and leaves with exit 0 (every node of the process had closed). rcl may
+    finalise a node twice: rclpy's own finalisation of the handle later does nothing.
+    """
+    global _participant_holder, _closing_step
+    holder, _participant_holder = _participant_holder, None
+    if holder is None:
+        return
+    _closing_step = ("the DDS participant's destruction (Fast DDS 2.14 can deadlock there "
+                     'at a system stop; every node of the process had closed)')
+    try:
+        code = finalize_rcl_node(holder.handle.pointer)
+    except OSError:     # no librcl.so by that name: rclpy's own way, with the GIL
+        holder.destroy_node()
+    else:
+        if code != 0:
+            print(f'[WARN] [{holder.get_name()}]: rcl_node_fini returned {code}',
+                  file=sys.stderr, flush=True)
+    _closing_step = 'destroy or rclpy shutdown'
+
+
 def leave_process(code: int) -> NoReturn:
     """
     End the process with code now, without the interpreter's teardown.
@@ -505,7 +575,8 @@ def leave_process(code: int) -> NoReturn:
     to 0.2 CPU s (ekf_node) per process at every stop (a system has a dozen), for
     nothing (bench/node_exit.py). What it did that matters is done first: threads that
     are not daemons are joined, the exit functions run (atexit), the ROS context is
-    destroyed (its DDS participant leaves), and stdout and stderr are flushed.
+    destroyed (its DDS participant has left: :func:`release_participant`), and stdout and
+    stderr are flushed.
     """
     # What the interpreter's exit does first: threading's exit hooks (a thread pool's
     # workers told to end), then every thread that is not a daemon joined; atexit.
@@ -547,6 +618,9 @@ def run_node(node_factory: Callable[..., Node], name: str,
         return 2
     # SIGINT also when inherited as ignored (e.g. `cmd &` in a script).
     raise_keyboard_interrupt_on_signals()
+    leaving = leave and os.environ.get(TEARDOWN_VARIABLE, '') != 'full'
+    if leaving:
+        hold_participant(name)
     channel = node_reload.reload_channel()
     until = channel.unload_requested if channel is not None else None
     node_args: Optional[List[str]] = None    # the first node: the process's arguments
@@ -587,7 +661,7 @@ def run_node(node_factory: Callable[..., Node], name: str,
         if node_args is None:
             rclpy.try_shutdown()
             break
-    if leave and os.environ.get(TEARDOWN_VARIABLE, '') != 'full':
+    if leaving:
         with close_watchdog(name):
             leave_process(0)
     return 0
@@ -606,6 +680,7 @@ def close_for_good(name: str, nodes: Sequence[Node]) -> None:
     with close_watchdog(name):
         for node in reversed(nodes):
             close_node(node)
+        release_participant()
         rclpy.try_shutdown()
 
 
