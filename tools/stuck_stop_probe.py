@@ -45,7 +45,12 @@ def trial(launch: Path, ready: str, wait_s: float, out: Path, env: dict) -> str:
     for pid in group:
         if int(pid) == launch_process.pid or not Path(f'/proc/{pid}').exists():
             continue
-        command = Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ')[:100]
+        try:
+            command = Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ')[:100]
+        except OSError:
+            continue    # ended meanwhile
+        if not command.split():
+            continue    # ended meanwhile (a zombie has no command line)
         stacks = subprocess.run(['gdb', '-p', pid, '-batch', '-ex', 'thread apply all bt 30'],
                                 capture_output=True, text=True).stdout
         (out / f'gdb_{pid}.txt').write_text(command.decode(errors='replace') + '\n' + stacks)
