@@ -76,6 +76,16 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path, marked_env):
     # The must-fail scenario failed for the right reason.
     timeout = summary(tmp_path, 'must_fail_timeout')
     assert timeout['verdict'] == 'fail' and timeout['steps'][0]['outcome'] == 'timeout'
+    # Its margin says so too: no time left (<= 0 s), and the unit is seconds.
+    step_1 = timeout['criteria'][0]
+    assert step_1['name'] == 'step 1' and step_1['margin'] <= 0.0
+    assert step_1['margin_unit'] == 's'
+    # The nearest obstacle of a run with a person walking across the robot's way is the
+    # person, as recorded (ground_truth/moving_obstacles), with a clearance above 0.
+    crossing = next(c for c in summary(tmp_path, 'person_before_text_command')['criteria']
+                    if c['name'] == 'no_collision')
+    assert ' to crossing_person at ' in crossing['detail'], crossing
+    assert crossing['margin'] > 0.0 and crossing['margin_unit'] == 'm'
     # Refused goals carry the navigator's error codes; the next goals are still reached.
     zone = summary(tmp_path, 'goal_outside_zone_refused')
     assert zone['verdict'] == 'pass'
@@ -108,6 +118,10 @@ def test_the_suite_reports_every_scenario_as_expected(tmp_path, marked_env):
             assert result_summary['collisions'] == 0, path.stem
             zone = [c for c in result_summary['criteria'] if c['name'] == 'stay_in_zone']
             assert zone and zone[0]['passed'], (path.stem, zone)
+            # Every criterion passed by a margin above 0, where it has one.
+            thin = [c for c in result_summary['criteria']
+                    if c['passed'] and c['margin'] is not None and c['margin'] <= 0.0]
+            assert thin == [], (path.stem, thin)
             assert result_summary['goals_reached'] == sum(
                 1 for step in result_summary['steps'] if step['outcome'] == 'reached')
     assert marked_env.leftovers() == []

@@ -1,7 +1,8 @@
 """
 The scenario runner's ROS side: one rclpy node in the scenario's own domain.
 
-It listens to the simulator's ground truth (``ground_truth/odom``, map frame), amcl's
+It listens to the simulator's ground truth (``ground_truth/odom``, map frame; the walking
+people's centres, ``ground_truth/moving_obstacles``, for the collision margin), amcl's
 estimate (``amcl_pose``), the collision count (``simulation/collisions``), the global plans
 (``plan``) and robot_controller's ``control_status``; it sends Nav2's NavigateToPose goals
 on ``navigate_to_pose`` and FollowWaypoints goals on ``follow_waypoints``, text commands
@@ -41,7 +42,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped, Twist
 from mecanum_bringup.scenario_loader import command_sources
 from mecanum_control.angles import quaternion_from_yaw, yaw_from_quaternion
 from mecanum_control.node_main import make_executor
@@ -122,6 +123,9 @@ class ScenarioDriver:
         latched = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         node = self.node
         node.create_subscription(Odometry, 'ground_truth/odom', self._on_truth, 50)
+        self._movers: List[Tuple[float, int, float, float]] = []
+        node.create_subscription(PoseArray, 'ground_truth/moving_obstacles',
+                                 self._on_movers, 50)
         node.create_subscription(PoseWithCovarianceStamped, 'amcl_pose', self._on_estimate,
                                  latched)
         node.create_subscription(UInt32, 'simulation/collisions', self._on_collisions, latched)
@@ -266,6 +270,12 @@ class ScenarioDriver:
             self._truth.append((_stamp_s(msg.header.stamp), pose.position.x,
                                 pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
 
+    def _on_movers(self, msg: PoseArray) -> None:
+        t = _stamp_s(msg.header.stamp)
+        with self._lock:
+            self._movers.extend((t, index, pose.position.x, pose.position.y)
+                                for index, pose in enumerate(msg.poses))
+
     def _on_estimate(self, msg: PoseWithCovarianceStamped) -> None:
         pose, q = msg.pose.pose, msg.pose.pose.orientation
         with self._lock:
@@ -361,6 +371,11 @@ class ScenarioDriver:
         """Return the ground truth so far as (N, 4) t, x, y, yaw."""
         with self._lock:
             return np.array(self._truth, dtype=np.float64).reshape(-1, 4)
+
+    def movers_track(self) -> np.ndarray:
+        """Return the walking people's true centres so far as (M, 4) t, k, x, y."""
+        with self._lock:
+            return np.array(self._movers, dtype=np.float64).reshape(-1, 4)
 
     def estimate_track(self) -> np.ndarray:
         """Return amcl's estimates so far as (N, 4) t, x, y, yaw."""

@@ -16,12 +16,21 @@ which carries the least clearance and where it was (:func:`min_zone_clearance_m`
 the recorded poses are judged (ground truth at 50 Hz): between two of them the robot
 moves at most L = v * dt (16 mm at 0.8 m/s), so it can have been at most L / 2 deeper
 than the two poses show.
+
+Each line also carries a margin (CriterionResult.margin: positive when it passed, <= 0
+when it failed, None where there is no measure), for the search of failures and the
+reports: a step's time left before its timeout_s (s; a step that timed out: how late,
+<= 0); max_duration_s's limit less the duration (s); no_collision's least footprint
+clearance to any obstacle (m: :func:`obstacle_clearances`: static ones of the scenario's
+world and the walking people as recorded, a collision making it <= 0); stay_in_zone's
+least footprint clearance to the zone's border (m); max_localization_error_m's limit less
+the largest error (m). 'completed' and 'fault_reaction' have none.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import functools
 import math
-from typing import Any, List, Optional
+from typing import Any, List, Optional, Tuple
 
 from mecanum_bringup.fault_reactions import judge_reaction
 from mecanum_bringup.scenario_model import (
@@ -30,6 +39,7 @@ from mecanum_bringup.scenario_model import (
 from mecanum_control.robot_config import default_config_path, load_robot_config
 from mecanum_safety.zone import Zone
 import numpy as np
+from robot_simulation.world import World
 
 
 @dataclass(frozen=True)
@@ -95,6 +105,88 @@ def track_array(values: Any, name: str = 'track') -> np.ndarray:
     return array[np.argsort(array[:, 0], kind='stable')]
 
 
+#: The unit of each criterion's margin ('step N': 's').
+MARGIN_UNITS = {'max_duration_s': 's', 'no_collision': 'm', 'stay_in_zone': 'm',
+                'max_localization_error_m': 'm'}
+
+
+def margin_unit(criterion: str) -> str:
+    """Return the unit of a criterion's margin: 's', 'm', or '' (it has none)."""
+    if criterion.startswith('step '):
+        return 's'
+    return MARGIN_UNITS.get(criterion, '')
+
+
+#: Poses judged at once by obstacle_clearances (a chunk x segments array of distances).
+_CLEARANCE_CHUNK = 256
+
+
+def obstacle_clearances(world: World, truth: Any, footprint_radius_m: float,
+                        movers: Any = None) -> np.ndarray:
+    """
+    Return the footprint's clearance (m) to the nearest obstacle at each pose of a track.
+
+    truth: (N, 4) t, x, y, yaw (as track_array). The clearance is the distance from the
+    centre to the nearest static edge (walls, furniture, map cell outlines, the world's
+    bounds) or circle, or walking person's disc, minus footprint_radius_m: 0 where the
+    footprint touches (the simulator's collision), as the simulator's physics sees the
+    robot (a circle). movers: (M, 4) t, k, x, y, the people's recorded centres (k: index
+    in world.moving_obstacles, whose radius_m is used), interpolated at the truth's
+    times within each one's recorded span. Static distances are to the obstacles'
+    boundaries, so a centre inside an obstacle (never in a run: the physics pushes out)
+    would read as outside. :func:`nearest_obstacles` also names each one.
+    """
+    return nearest_obstacles(world, truth, footprint_radius_m, movers)[0]
+
+
+def nearest_obstacles(world: World, truth: Any, footprint_radius_m: float,
+                      movers: Any = None) -> Tuple[np.ndarray, List[str]]:
+    """Return obstacle_clearances' array and the name of the obstacle nearest each pose."""
+    track = track_array(truth, 'truth')
+    if len(track) == 0:
+        return np.zeros(0), []
+    xs, ys = track[:, 1], track[:, 2]
+    names = list(world.segment_names) + [circle.name for circle in world.circles] + [
+        mover.name for mover in world.moving_obstacles]
+    nearest = np.full(len(track), np.inf)
+    which = np.full(len(track), -1, dtype=np.intp)
+
+    def take(distances: np.ndarray, index: Any, where: Any = slice(None)) -> None:
+        closer = distances < nearest[where]
+        nearest[where] = np.where(closer, distances, nearest[where])
+        which[where] = np.where(closer, index, which[where])
+
+    segments = np.asarray(world.segments, dtype=np.float64).reshape(-1, 4)
+    if len(segments):
+        x1, y1, x2, y2 = (segments[:, i][np.newaxis, :] for i in range(4))
+        dx, dy = x2 - x1, y2 - y1
+        length2 = np.maximum(dx * dx + dy * dy, 1e-18)
+        for start in range(0, len(track), _CLEARANCE_CHUNK):
+            chunk = slice(start, start + _CLEARANCE_CHUNK)
+            px, py = xs[chunk, np.newaxis], ys[chunk, np.newaxis]
+            u = np.clip(((px - x1) * dx + (py - y1) * dy) / length2, 0.0, 1.0)
+            distances = np.hypot(px - (x1 + u * dx), py - (y1 + u * dy))
+            take(distances.min(axis=1), distances.argmin(axis=1), chunk)
+    offset = len(segments)
+    for number, circle in enumerate(world.circles):
+        cx, cy = circle.center
+        take(np.abs(np.hypot(xs - cx, ys - cy) - circle.radius_m), offset + number)
+    offset += len(world.circles)
+    recorded = np.asarray(movers if movers is not None else np.zeros((0, 4)),
+                          dtype=np.float64).reshape(-1, 4)
+    for number, mover in enumerate(world.moving_obstacles):
+        rows = recorded[recorded[:, 1] == number]
+        rows = rows[np.argsort(rows[:, 0], kind='stable')]
+        if len(rows) == 0:
+            continue
+        inside = np.nonzero((track[:, 0] >= rows[0, 0]) & (track[:, 0] <= rows[-1, 0]))[0]
+        mx = np.interp(track[inside, 0], rows[:, 0], rows[:, 2])
+        my = np.interp(track[inside, 0], rows[:, 0], rows[:, 3])
+        take(np.hypot(xs[inside] - mx, ys[inside] - my) - mover.radius_m, offset + number,
+             inside)
+    return nearest - float(footprint_radius_m), [names[i] if i >= 0 else '' for i in which]
+
+
 def localization_errors(truth: Any, estimate: Any) -> np.ndarray:
     """
     Return a (K, 2) array of t, |estimate - truth| (m, x and y only) at each estimate time.
@@ -153,13 +245,10 @@ def judge(scenario: Scenario, record: RunRecord,
         sign = '<=' if passed else '>'
         results.append(CriterionResult(
             'max_duration_s', passed,
-            f'max_duration_s: {duration:.1f} s {sign} {criteria.max_duration_s:g} s'))
+            f'max_duration_s: {duration:.1f} s {sign} {criteria.max_duration_s:g} s',
+            _signed(criteria.max_duration_s - duration, passed), 's'))
     if criteria.no_collision:
-        times = sorted(float(t) for t in record.collision_times)
-        detail = f'no_collision: {len(times)} collision{"" if len(times) == 1 else "s"}'
-        if times:
-            detail += f', first at t={times[0]:.1f} s'
-        results.append(CriterionResult('no_collision', not times, detail))
+        results.append(_judge_collisions(scenario.world, record, radius_m))
     if criteria.stay_in_zone:
         results.append(_judge_zone(scenario.authorised_zone, record.truth, radius_m))
     if criteria.max_localization_error_m is not None:
@@ -168,6 +257,40 @@ def judge(scenario: Scenario, record: RunRecord,
         results.append(_judge_fault_reactions(scenario, record))
     verdict = 'pass' if all(r.passed for r in results) else 'fail'
     return Verdict(scenario.name, scenario.expect, verdict, tuple(results))
+
+
+def _signed(margin: float, passed: bool) -> Optional[float]:
+    """Return margin as a criterion's: None unless finite; <= 0 when it failed."""
+    if not math.isfinite(margin):
+        return None
+    return margin if passed else min(margin, 0.0)
+
+
+def _judge_collisions(world: Optional[World], record: RunRecord,
+                      radius_m: float) -> CriterionResult:
+    name = 'no_collision'
+    times = sorted(float(t) for t in record.collision_times)
+    detail = f'{name}: {len(times)} collision{"" if len(times) == 1 else "s"}'
+    if times:
+        detail += f', first at t={times[0]:.1f} s'
+    passed = not times
+    track = track_array(record.truth, 'truth')
+    if world is None or len(track) == 0:
+        return CriterionResult(name, passed, detail)
+    clearances, names = nearest_obstacles(world, track, radius_m, record.movers)
+    least = int(np.argmin(np.round(clearances, 9)))
+    clearance = float(clearances[least])
+    detail += (f'; least footprint clearance {clearance:.3f} m to {names[least]} at '
+               f't={track[least, 0]:.1f} s ({track[least, 1]:.2f}, {track[least, 2]:.2f})')
+    return CriterionResult(name, passed, detail, _signed(clearance, passed), 'm')
+
+
+def _step_margin(step: Step, result: StepResult, passed: bool) -> Optional[float]:
+    """Return a step's time left before its timeout_s (s); one that timed out: <= 0."""
+    timeout_s = getattr(step, 'timeout_s', None)
+    if timeout_s is None or not (passed or result.outcome == 'timeout'):
+        return None
+    return _signed(float(timeout_s) - result.duration_s, passed)
 
 
 def _judge_step(number: int, step: Step, result: Optional[StepResult],
@@ -183,15 +306,18 @@ def _judge_step(number: int, step: Step, result: Optional[StepResult],
     outcome = result.outcome
     took = f' in {result.duration_s:.1f} s' if math.isfinite(result.duration_s) else ''
     if isinstance(step, GoalStep):
-        return _judge_goal(name, head, step, result, took)
+        line = _judge_goal(name, head, step, result, took)
+        return replace(line, margin=_step_margin(step, result, line.passed), margin_unit='s')
     expected = (step.expect if isinstance(step, CommandStep)
                 else 'reached' if isinstance(step, WaypointsStep) else 'done')
     passed = expected == 'any' or outcome == expected
     detail = f'{head}: {outcome}{took}'
     if result.error_message:
         detail += f': {result.error_message}'
+    margin = _step_margin(step, result, passed)
     return CriterionResult(name, passed,
-                           detail if passed else detail + f' (expected {expected})')
+                           detail if passed else detail + f' (expected {expected})',
+                           margin, 's' if margin is not None else '')
 
 
 def _judge_goal(name: str, head: str, step: GoalStep, result: StepResult,
@@ -255,7 +381,9 @@ def _judge_zone(zone: Optional[Zone], truth: Any, radius_m: float) -> ZoneResult
         if first != least:
             detail += f', first at t={track[first, 0]:.1f} s ({track[first, 1]:.2f}, ' \
                       f'{track[first, 2]:.2f})'
-    return ZoneResult(name, passed, detail, clearance, t, x, y, radius_m)
+    return ZoneResult(name, passed, detail, margin=clearance, margin_unit='m',
+                      min_clearance_m=clearance, t_s=t, x_m=x, y_m=y,
+                      footprint_radius_m=radius_m)
 
 
 def _judge_fault_reactions(scenario: Scenario, record: RunRecord) -> CriterionResult:
@@ -283,10 +411,12 @@ def _judge_localization(limit_m: float, record: RunRecord) -> CriterionResult:
                                "truth's time span")
     worst = int(np.argmax(errors[:, 1]))
     t, error = errors[worst]
-    if error <= limit_m:
+    passed = bool(error <= limit_m)
+    margin = _signed(limit_m - float(error), passed)
+    if passed:
         return CriterionResult('max_localization_error_m', True,
                                f'max_localization_error_m: {error:.2f} m <= {limit_m:g} m '
-                               f'({len(errors)} estimates)')
+                               f'({len(errors)} estimates)', margin, 'm')
     return CriterionResult('max_localization_error_m', False,
                            f'max_localization_error_m: {error:.2f} m at t={t:.1f} s > '
-                           f'{limit_m:g} m')
+                           f'{limit_m:g} m', margin, 'm')

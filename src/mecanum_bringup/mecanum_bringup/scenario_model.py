@@ -326,15 +326,26 @@ class RunRecord:
     duration_s: float = 0.0
     aborted: Optional[str] = None
     faults: List[Dict[str, Any]] = field(default_factory=list)
+    #: (M, 4) t, k, x, y: the moving obstacles' true centres (k: the index in the
+    #: scenario world's moving_obstacles), stamped as the ground truth they came with.
+    movers: np.ndarray = field(default_factory=_empty_track)
 
 
 @dataclass(frozen=True)
 class CriterionResult:
-    """One line of a verdict: a step or a criterion, whether it passed, and why."""
+    """
+    One line of a verdict: a step or a criterion, whether it passed, and why.
+
+    margin: how far the run was from failing it, in margin_unit ('m' or 's'): positive
+    when it passed, <= 0 when it failed; None where the criterion has no measure (a
+    step's outcome other than in time or too late, 'completed', 'fault_reaction').
+    """
 
     name: str
     passed: bool
     detail: str
+    margin: Optional[float] = None
+    margin_unit: str = ''
 
 
 @dataclass(frozen=True)

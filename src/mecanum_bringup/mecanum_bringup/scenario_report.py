@@ -172,7 +172,9 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
     scenario.localization_errors). min_zone_clearance_m is stay_in_zone's least footprint
     clearance (m, < 0: the footprint left the zone; see scenario_judge), first reached at
     min_zone_clearance_at {t_s, x_m, y_m}, with footprint_radius_m the radius judged: all
-    None when stay_in_zone measured nothing (disabled, no zone, no ground truth). extra
+    None when stay_in_zone measured nothing (disabled, no zone, no ground truth). Each
+    criterion has its margin (positive when it passed, <= 0 when it failed; None where it
+    has none) and margin_unit ('m', 's'; see scenario_judge). extra
     adds top-level keys (e.g. wall_time_s); a key that is already there raises ValueError.
     """
     goal_indices = [i for i, step in enumerate(scenario.steps)
@@ -211,7 +213,9 @@ def summary_json(scenario: Scenario, record: RunRecord, verdict: Verdict,
         'steps': [{'kind': r.kind, 'outcome': r.outcome, 'error_code': int(r.error_code),
                    'error_message': r.error_message, 'start_s': _finite_or_none(r.start_s),
                    'end_s': _finite_or_none(r.end_s)} for r in record.step_results],
-        'criteria': [{'name': c.name, 'passed': c.passed, 'detail': c.detail}
+        'criteria': [{'name': c.name, 'passed': c.passed, 'detail': c.detail,
+                      'margin': _finite_or_none(c.margin) if c.margin is not None else None,
+                      'margin_unit': c.margin_unit or None}
                      for c in verdict.criteria],
     }
     for key, value in (extra or {}).items():

@@ -683,6 +683,7 @@ def run_scenario(scenario: Scenario, options: RunOptions) -> ScenarioResult:
         if driver is not None:
             _end_aborted_step(record, driver.sim_now())
             record.truth, record.estimate = driver.truth_track(), driver.estimate_track()
+            record.movers = driver.movers_track()
             record.collision_times = list(driver.collision_times)
             record.safety_events = driver.safety_events()
             record.chain_states = driver.chain_states()

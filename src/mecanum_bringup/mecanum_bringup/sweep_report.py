@@ -9,7 +9,11 @@ embedded as a base64 PNG); it links the worst variants' run folders relatively, 
 sweep's folder can be moved or served as a whole. Where the variants measured it, every
 report also gives the least zone clearance (the footprint's least clearance to the
 authorised zone's border, m, < 0: out of it; see sweep_stats): per variant (JUnit
-property ``min_zone_clearance_m``), overall, and per value of each axis.
+property ``min_zone_clearance_m``), overall, and per value of each axis. Where variants
+have margins (scenario_judge: how far each criterion was from failing, m or s; positive
+when it passed), the rates table gives each criterion's least margin and its variant,
+and a second plot (``margins.png``) gives every variant's margin along each axis, one
+row of plots per criterion (the steps as one: each variant's least step margin).
 
 Steps are named by what they do, not only by number (:func:`step_labels`): the store
 keeps each criterion as the judge named it ('step 2'), and the report reads each
@@ -37,10 +41,12 @@ import re
 from typing import Dict, Iterable, List, Optional, Sequence, Tuple, Union
 import xml.etree.ElementTree as ElementTree
 
+from mecanum_bringup.scenario_judge import margin_unit
 from mecanum_bringup.scenario_report import one_line, xml_text
 from mecanum_bringup.sweep_stats import (
-    axis_clearances, axis_rates, Change, clearance_order, criterion_rates, failed_criteria,
-    least_clearance, LeastClearance, Rate, summary_axes, value_label, VariantChange,
+    axis_clearances, axis_margins, axis_rates, Change, clearance_order, criterion_rates,
+    failed_criteria, least_clearance, least_margins, LeastClearance, LeastMargin,
+    margin_group_order, Rate, STEPS_GROUP, summary_axes, value_label, VariantChange,
     worst_variants)
 from mecanum_bringup.sweep_store import VariantRow
 import yaml
@@ -228,6 +234,13 @@ def _least_text(least: LeastClearance) -> str:
             f'{least.measured} measured variant{"" if least.measured == 1 else "s"} below 0 m')
 
 
+def _margin_text(least: Optional[LeastMargin]) -> str:
+    """Return e.g. '0.085 m (tour_0003)' for a criterion's least margin, '-' if none."""
+    if least is None:
+        return '-'
+    return f'{least.margin:.3f} {margin_unit(least.criterion)} ({least.variant})'
+
+
 def _status_counts(rows: Sequence[VariantRow]) -> str:
     counts = {status: sum(row.status == status for row in rows)
               for status in ('OK', 'UNEXPECTED', 'ERROR')}
@@ -248,10 +261,13 @@ def rates_table(rows: Sequence[VariantRow], runs_base: Optional[PathLike] = None
     variant.
     """
     labels = step_labels(rows, runs_base)
-    table = [('criterion', 'failures/n', 'rate', '95 % CI')]
+    margins = least_margins(rows)
+    table = [('criterion', 'failures/n', 'rate', '95 % CI')
+             + (('least margin',) if margins else ())]
     for rate in criterion_rates(rows):
         table.append((_criterion_label(rate.name, labels), f'{rate.failures}/{rate.n}',
-                      _percent(rate.rate) if rate.n else '-', _interval(rate)))
+                      _percent(rate.rate) if rate.n else '-', _interval(rate))
+                     + ((_margin_text(margins.get(rate.name)),) if margins else ()))
     lines = _fixed_width(table, right=(1, 2, 3))
     lines += _step_legend(labels)
     lines.append(_status_counts(rows))
@@ -354,6 +370,56 @@ def plot_axis_rates(rows: Sequence[VariantRow], axes: Sequence[str],
         plot.set_xlim(-0.5, len(rates) - 0.5)
     figure.tight_layout()
     figure.savefig(str(path_png), format='png')
+
+
+def plot_axis_margins(rows: Sequence[VariantRow], axes: Sequence[str],
+                      path_png: PathLike) -> bool:
+    """
+    Write a PNG of every variant's margins along each axis; return False if none has any.
+
+    One row of subplots per margin group (sweep_stats.margin_group_order: 'steps', each
+    variant's least step margin, then each criterion), one column per axis; each variant
+    is a point at its axis value (or bin, as in the rates plot) and its margin, red when
+    its verdict was not the expected one; a line marks 0, below which a criterion failed.
+    """
+    groups = margin_group_order(rows)
+    if not groups:
+        return False
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    axes = list(axes) or ['(no axes)']
+    figure = Figure(figsize=(0.8 + 3.4 * len(axes), 0.6 + 2.4 * len(groups)), dpi=100)
+    FigureCanvasAgg(figure)
+    for row_number, group in enumerate(groups):
+        unit = margin_unit('step 1' if group == STEPS_GROUP else group)
+        for column, axis in enumerate(axes):
+            plot = figure.add_subplot(len(groups), len(axes), row_number * len(axes)
+                                      + column + 1)
+            plot.axhline(0.0, color='grey', linewidth=0.8)
+            plot.grid(True, axis='y', alpha=0.3)
+            if row_number == 0:
+                plot.set_title(axis, fontsize=10)
+            if column == 0:
+                plot.set_ylabel(f'{group} margin ({unit})', fontsize=8)
+            points = axis_margins(rows, axis, group)
+            if not any(values for _, values in points):
+                plot.text(0.5, 0.5, 'no margins', ha='center', va='center',
+                          transform=plot.transAxes, color='grey')
+                plot.set_xticks([])
+                continue
+            for x, (_, values) in enumerate(points):
+                spread = [x + 0.3 * ((i + 0.5) / len(values) - 0.5) for i in range(len(values))]
+                plot.scatter(spread, [margin for margin, _ in values], s=10,
+                             c=['tab:red' if failed else 'tab:blue' for _, failed in values])
+            labels = [one_line(label, 16) for label, _ in points]
+            plot.set_xticks(list(range(len(points))))
+            plot.set_xticklabels(labels, rotation=30 if len(points) > 3 else 0,
+                                 ha='right' if len(points) > 3 else 'center', fontsize=7)
+            plot.set_xlim(-0.5, len(points) - 0.5)
+    figure.tight_layout()
+    figure.savefig(str(path_png), format='png')
+    return True
 
 
 def _values_text(row: VariantRow) -> str:
@@ -480,7 +546,7 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
                  axes: Sequence[str], description: str = '', worst_count: int = 10,
                  runs_base: Optional[PathLike] = None) -> Path:
     """
-    Write out_dir/report.html, out_dir/rates.png and out_dir/junit.xml; return the HTML path.
+    Write out_dir/report.html, rates.png, junit.xml (and margins.png); return the HTML path.
 
     The page (self-contained, every text HTML-escaped) has the sweep's name and
     description, the number of variants, the rates table with Wilson 95 % intervals,
@@ -496,7 +562,9 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
     kind (faults), 'AXIS.kind' after it (sweep_stats.summary_axes). When some variant
     measured its least zone clearance, the per-axis tables give each value's least (and
     its variant), a section gives the overall least and the worst_count variants of
-    least clearance, and the worst variants table gives each one's.
+    least clearance, and the worst variants table gives each one's. When some variant has
+    margins, the rates table gives each criterion's least margin and its variant, and
+    margins.png (plot_axis_margins) is embedded after the rates plot.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -509,12 +577,16 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
 
     png_path = out_dir / 'rates.png'
     plot_axis_rates(rows, axes, png_path)
+    margins_png = out_dir / 'margins.png'
+    has_margins = plot_axis_margins(rows, axes, margins_png)
     (out_dir / 'junit.xml').write_text(junit_xml(rows, sweep_name), encoding='utf-8')
     png = base64.b64encode(png_path.read_bytes()).decode('ascii')
 
     labels = step_labels(rows, base, out_dir)
+    margins = least_margins(rows)
     rate_rows = [(_criterion_cell(rate.name, labels), f'{rate.failures}/{rate.n}',
                   _percent(rate.rate) if rate.n else '-', _interval(rate))
+                 + ((esc(_margin_text(margins.get(rate.name))),) if margins else ())
                  for rate in criterion_rates(rows)]
     parts = [
         '<!DOCTYPE html>', '<html lang="en"><head><meta charset="utf-8">',
@@ -525,10 +597,20 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
     parts += [f'<p>{esc(_status_counts(rows))}. A variant fails when its verdict is not the '
               'expected one or it could not be judged (ERROR).</p>',
               '<h2>Failure rates</h2>',
-              _html_table(('criterion', 'failures/n', 'rate', '95 % CI (Wilson)'), rate_rows,
+              _html_table(('criterion', 'failures/n', 'rate', '95 % CI (Wilson)')
+                          + (('least margin (variant)',) if margins else ()), rate_rows,
                           numeric=(1, 2, 3)),
               '<h2>Failure rate along each axis</h2>',
               f'<img src="data:image/png;base64,{png}" alt="failure rate along each axis">']
+    if has_margins:
+        margins_data = base64.b64encode(margins_png.read_bytes()).decode('ascii')
+        parts += ['<h2>Margins along each axis</h2>',
+                  '<p>How far each variant was from failing each criterion (m or s; '
+                  'below 0 it failed; red: the verdict was not the expected one; the '
+                  "steps as one: each variant's least step margin, the time left before "
+                  'its timeout).</p>',
+                  f'<img src="data:image/png;base64,{margins_data}" '
+                  'alt="margins along each axis">']
     for axis in axes:
         rates = axis_rates(rows, axis)
         if rates:

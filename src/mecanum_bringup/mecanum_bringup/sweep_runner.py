@@ -172,7 +172,8 @@ def variant_row(index: int, name: str, values: Dict[str, Any], result: ScenarioR
     Return the store's row of a finished variant: its status, criteria and least clearance.
 
     min_zone_clearance_m is the verdict's stay_in_zone least footprint clearance (m;
-    None when not judged or not measured); worker and finished_at are this process's.
+    None when not judged or not measured); margins each criterion's that has one;
+    worker and finished_at are this process's.
     """
     verdict = result.verdict
     first = verdict.first_failure if verdict else None
@@ -184,7 +185,9 @@ def variant_row(index: int, name: str, values: Dict[str, Any], result: ScenarioR
         sim_time_s=_finite(result.sim_time_s), wall_time_s=_finite(result.wall_time_s),
         run_dir=run_dir, error=result.error, worker=_worker_name(),
         finished_at=time.time(),
-        min_zone_clearance_m=_finite(min_zone_clearance_m(verdict)) if verdict else None)
+        min_zone_clearance_m=_finite(min_zone_clearance_m(verdict)) if verdict else None,
+        margins={c.name: c.margin for c in verdict.criteria
+                 if _finite(c.margin) is not None} if verdict else {})
 
 
 def _worker_name() -> str:

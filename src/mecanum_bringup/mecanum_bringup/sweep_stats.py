@@ -327,6 +327,75 @@ def axis_clearances(rows: Sequence[VariantRow], axis: str) -> List[LeastClearanc
     return [least_clearance(group, label) for label, group in axis_groups(rows, axis)]
 
 
+#: The margin group of every step: a variant's least step margin (time left, s).
+STEPS_GROUP = 'steps'
+
+
+def margin_groups(row: VariantRow) -> Dict[str, float]:
+    """
+    Return a row's margins by group: 'steps' (the least of its steps'), then the others.
+
+    Each criterion's margin as stored (scenario_judge: positive when it passed, m or s);
+    the steps become one group so that a sweep of scenarios with different steps has
+    one line for them.
+    """
+    groups: Dict[str, float] = {}
+    for name, margin in row.margins.items():
+        if margin is None or not math.isfinite(margin):
+            continue
+        group = STEPS_GROUP if _STEP.fullmatch(name) else name
+        groups[group] = min(margin, groups.get(group, math.inf))
+    return groups
+
+
+def margin_group_order(rows: Sequence[VariantRow]) -> List[str]:
+    """Return the margin groups any row has: 'steps' first, then alphabetically."""
+    names = {group for row in rows for group in margin_groups(row)}
+    return sorted(names, key=lambda name: (name != STEPS_GROUP, name))
+
+
+@dataclass(frozen=True)
+class LeastMargin:
+    """The least margin of a criterion (or 'steps') over rows, and which variant had it."""
+
+    criterion: str
+    margin: float
+    variant: str
+    n: int          # rows with a margin for it
+
+
+def least_margins(rows: Sequence[VariantRow]) -> Dict[str, LeastMargin]:
+    """Return each criterion's least margin over rows (ties: the lowest index)."""
+    least: Dict[str, LeastMargin] = {}
+    for row in sorted(rows, key=lambda row: row.index):
+        for name, margin in row.margins.items():
+            if margin is None or not math.isfinite(margin):
+                continue
+            best = least.get(name)
+            count = best.n + 1 if best else 1
+            if best is None or margin < best.margin:
+                least[name] = LeastMargin(name, float(margin), row.name, count)
+            else:
+                least[name] = LeastMargin(name, best.margin, best.variant, count)
+    return least
+
+
+def axis_margins(rows: Sequence[VariantRow], axis: str,
+                 group: str) -> List[Tuple[str, List[Tuple[float, bool]]]]:
+    """
+    Return (label, [(margin, failed), ...]) for each group of axis_groups(rows, axis).
+
+    The margins of margin group ``group`` (margin_groups) of the rows that have it;
+    failed: the row's verdict was not the expected one.
+    """
+    points = []
+    for label, members in axis_groups(rows, axis):
+        values = [(margin_groups(row)[group], row.failed) for row in members
+                  if group in margin_groups(row)]
+        points.append((label, values))
+    return points
+
+
 def failed_criteria(row: VariantRow) -> List[str]:
     """Return the names of the row's failed criteria, in criterion_order."""
     return criterion_order([name for name, passed in row.criteria.items() if not passed])

@@ -15,14 +15,17 @@ Tables::
     variants(idx INTEGER PRIMARY KEY, name TEXT, values_json TEXT, status TEXT,
              verdict TEXT, expected TEXT, criteria_json TEXT, first_failure TEXT,
              sim_time_s REAL, wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT,
-             finished_at REAL, min_zone_clearance_m REAL)
+             finished_at REAL, min_zone_clearance_m REAL, margins_json TEXT)
 
 ``status`` is the scenario runner's: 'OK' (verdict as expected), 'UNEXPECTED' or
 'ERROR' (no verdict: the run could not be judged). ``criteria_json`` maps each criterion
 name ('step 1', 'no_collision', ...) to whether it passed. ``min_zone_clearance_m`` is
 the run's least footprint clearance to the authorised zone's border (m, < 0: the
-footprint left the zone; NULL: not measured; see scenario_judge). A store made before
-that column existed reads with NULL there, and gets the column when a sweep resumes it.
+footprint left the zone; NULL: not measured; see scenario_judge). ``margins_json`` maps
+each criterion that has a margin to it (positive: passed by that much; <= 0: failed; m
+or s, see scenario_judge); :attr:`VariantRow.least_margin` is the least of them. A store
+made before a column existed reads with NULL there (no margins), and gets the column
+when a sweep resumes it.
 """
 
 from dataclasses import dataclass, field
@@ -59,6 +62,13 @@ class VariantRow:
     worker: str = ''
     finished_at: float = 0.0
     min_zone_clearance_m: Optional[float] = None   # m; None: not measured
+    #: criterion name -> margin (m or s; positive: passed by that much), where it has one.
+    margins: Dict[str, float] = field(default_factory=dict)
+
+    @property
+    def least_margin(self) -> Optional[float]:
+        """Return the least margin of any criterion (None: no criterion has one)."""
+        return min(self.margins.values()) if self.margins else None
 
     @property
     def failed(self) -> bool:
@@ -68,9 +78,9 @@ class VariantRow:
 
 _COLUMNS = ('idx', 'name', 'values_json', 'status', 'verdict', 'expected', 'criteria_json',
             'first_failure', 'sim_time_s', 'wall_time_s', 'run_dir', 'error', 'worker',
-            'finished_at', 'min_zone_clearance_m')
+            'finished_at', 'min_zone_clearance_m', 'margins_json')
 #: Columns added after the first stores, with their types (added to an old store on open).
-_ADDED_COLUMNS = {'min_zone_clearance_m': 'REAL'}
+_ADDED_COLUMNS = {'min_zone_clearance_m': 'REAL', 'margins_json': 'TEXT'}
 
 
 def _change(name: str, before: Dict[str, str], now: Dict[str, str]) -> str:
@@ -106,7 +116,7 @@ class ResultsStore:
                     'values_json TEXT, status TEXT, verdict TEXT, expected TEXT, '
                     'criteria_json TEXT, first_failure TEXT, sim_time_s REAL, '
                     'wall_time_s REAL, run_dir TEXT, error TEXT, worker TEXT, '
-                    'finished_at REAL, min_zone_clearance_m REAL)')
+                    'finished_at REAL, min_zone_clearance_m REAL, margins_json TEXT)')
                 meta = dict(self._db.execute('SELECT key, value FROM sweep'))
                 if not meta:
                     self._db.executemany('INSERT INTO sweep VALUES (?, ?)', [
@@ -165,7 +175,8 @@ class ResultsStore:
                 (row.index, row.name, json.dumps(row.values, sort_keys=True), row.status,
                  row.verdict, row.expected, json.dumps(row.criteria), row.first_failure,
                  row.sim_time_s, row.wall_time_s, row.run_dir, row.error, row.worker,
-                 row.finished_at or time.time(), row.min_zone_clearance_m))
+                 row.finished_at or time.time(), row.min_zone_clearance_m,
+                 json.dumps(row.margins, sort_keys=True)))
 
     def done_indices(self) -> set:
         """Return the indices of the variants that have a row."""
@@ -218,8 +229,9 @@ def _select(db: sqlite3.Connection) -> str:
 
 def _row(record: Iterable[Any]) -> VariantRow:
     (index, name, values, status, verdict, expected, criteria, first_failure, sim_time_s,
-     wall_time_s, run_dir, error, worker, finished_at, min_zone_clearance_m) = record
+     wall_time_s, run_dir, error, worker, finished_at, min_zone_clearance_m,
+     margins) = record
     return VariantRow(index, name, json.loads(values), status, verdict, expected,
                       json.loads(criteria or '{}'), first_failure or '', sim_time_s,
                       wall_time_s, run_dir or '', error or '', worker or '', finished_at,
-                      min_zone_clearance_m)
+                      min_zone_clearance_m, json.loads(margins or '{}'))

@@ -8,7 +8,8 @@ import shutil
 import textwrap
 
 from mecanum_bringup.scenario_judge import (
-    footprint_clearances, judge, localization_errors, min_zone_clearance_m, track_array)
+    footprint_clearances, judge, localization_errors, min_zone_clearance_m, nearest_obstacles,
+    obstacle_clearances, track_array)
 from mecanum_bringup.scenario_loader import (
     build_world, find_scenarios, load_scenario, scenario_world_document, ScenarioError)
 from mecanum_bringup.scenario_model import (
@@ -475,9 +476,9 @@ def judged(tmp_path):
 
 
 def good_record() -> RunRecord:
-    """Return a run where everything went right: truth along y = 2 at 0.1 m/s, estimate on it."""
+    """Return a run where everything went right: truth along y = 3.1 at 0.1 m/s, estimate on it."""
     times = np.arange(0.0, 50.1, 1.0)
-    truth = np.column_stack([times, 2.0 + 0.1 * times, np.full_like(times, 2.0),
+    truth = np.column_stack([times, 2.0 + 0.1 * times, np.full_like(times, 3.1),
                              np.zeros_like(times)])
     estimate = truth[::5].copy()
     estimate[:, 2] += 0.05
@@ -514,12 +515,72 @@ def test_a_good_run_passes_with_one_line_per_step_and_criterion(judged):
         'step 5': 'step 5 wait 2.0 s: done in 2.0 s',
         'completed': 'completed: all 5 steps run in 37.0 s',
         'max_duration_s': 'max_duration_s: 37.0 s <= 60 s',
-        'no_collision': 'no_collision: 0 collisions',
-        # Every pose is 1.9 m from y = 0.1 (and the first from x = 0.1): 1.9 - 0.2 m.
-        'stay_in_zone': 'stay_in_zone: least clearance 1.700 m at t=0.0 s (2.00, 2.00): the '
+        # The last pose, (7.0, 3.1), is hypot(0.075, 0.275) = 0.285 m from chair_3's
+        # corner (7.075, 2.825): 0.285 - 0.2 m.
+        'no_collision': 'no_collision: 0 collisions; least footprint clearance 0.085 m to '
+                        'chair_3 at t=50.0 s (7.00, 3.10)',
+        # The first pose is 1.9 m from x = 0.1 (the others farther): 1.9 - 0.2 m.
+        'stay_in_zone': 'stay_in_zone: least clearance 1.700 m at t=0.0 s (2.00, 3.10): the '
                         'footprint (radius 0.20 m) stayed inside at all 51 true poses',
         'max_localization_error_m': 'max_localization_error_m: 0.05 m <= 0.2 m (11 estimates)',
     }
+
+
+def small_world(tmp_path):
+    """Return a 4 m x 4 m room with a post (circle) and a person walking (a world file)."""
+    world = tmp_path / 'small.yaml'
+    world.write_text(textwrap.dedent("""
+        world:
+          bounds_m: [0.0, 0.0, 4.0, 4.0]
+          furniture:
+          - {name: post, circle: {center: [3.0, 3.0], radius_m: 0.25}}
+          moving_obstacles:
+          - {name: person, radius_m: 0.25, speed_m_s: 0.5, path: [[0.5, 3.5], [2.0, 3.5]]}
+          robot_start: {x_m: 1.0, y_m: 1.0}
+        """))
+    return load_world(world)
+
+
+def test_obstacle_clearances_by_hand(tmp_path):
+    world = small_world(tmp_path)
+    truth = [[0.0, 1.0, 1.0, 0.0],     # 1.0 m from the south and west bounds
+             [1.0, 2.0, 2.0, 0.0],     # hypot(1, 1) - 0.25 = 1.164 m from the post's rim
+             [2.0, 3.0, 2.2, 0.0],     # 0.8 - 0.25 = 0.55 m from the post's rim
+             [3.0, 1.0, 2.9, 0.0]]     # the person at (1.0, 3.5): 0.6 - 0.25 = 0.35 m
+    movers = [[2.0, 0, 0.5, 3.5], [4.0, 0, 1.5, 3.5]]   # at t = 3 s halfway: (1.0, 3.5)
+    clearances = obstacle_clearances(world, truth, 0.2, movers)
+    np.testing.assert_allclose(
+        clearances, [0.8, math.hypot(1.0, 1.0) - 0.25 - 0.2, 0.55 - 0.2, 0.35 - 0.2],
+        atol=1e-9)
+    assert nearest_obstacles(world, truth, 0.2, movers)[1] == ['bounds', 'post', 'post',
+                                                               'person']
+    # Without the person recorded, the last pose is 1.0 m from the west bound.
+    np.testing.assert_allclose(obstacle_clearances(world, truth, 0.2)[3], 1.0 - 0.2)
+
+
+def test_each_criterion_says_how_close_the_run_came(judged):
+    margins = {c.name: (c.margin, c.margin_unit) for c in judge(judged, good_record()).criteria}
+    assert margins == {
+        'step 1': (pytest.approx(90.0 - 31.2), 's'),      # its timeout_s 90
+        'step 2': (pytest.approx(120.0 - 0.1), 's'),      # the default 120 s
+        'step 3': (pytest.approx(margins['step 3'][0]), 's'),
+        'step 4': (None, ''), 'step 5': (None, ''), 'completed': (None, ''),
+        'max_duration_s': (pytest.approx(60.0 - 37.0), 's'),
+        'no_collision': (pytest.approx(0.085, abs=5e-4), 'm'),
+        'stay_in_zone': (pytest.approx(1.7), 'm'),
+        'max_localization_error_m': (pytest.approx(0.2 - 0.05), 'm')}
+    step_3 = judged.steps[2]
+    assert margins['step 3'][0] == pytest.approx(step_3.timeout_s - 2.7)
+    # Failed: at most 0; a timeout says how late.
+    record = good_record()
+    record.step_results[0] = StepResult('goal', 'timeout', 0, '', 0.0, 92.5)
+    record.estimate[:, 2] += 0.25   # 0.3 m off
+    verdict = judge(judged, record)
+    lines = {c.name: c for c in verdict.criteria}
+    assert lines['step 1'].margin == pytest.approx(-2.5)
+    assert lines['max_localization_error_m'].margin == pytest.approx(-0.1)
+    record.step_results[0] = StepResult('goal', 'failed', 9104, 'stuck', 0.0, 20.0)
+    assert {c.name: c for c in judge(judged, record).criteria}['step 1'].margin is None
 
 
 def test_a_collision_fails_the_run(judged):
@@ -528,7 +589,11 @@ def test_a_collision_fails_the_run(judged):
     verdict = judge(judged, record)
     assert verdict.verdict == 'fail' and not verdict.as_expected
     assert verdict.first_failure.name == 'no_collision'
-    assert verdict.first_failure.detail == 'no_collision: 2 collisions, first at t=12.5 s'
+    assert verdict.first_failure.detail == (
+        'no_collision: 2 collisions, first at t=12.5 s; least footprint clearance 0.085 m to '
+        'chair_3 at t=50.0 s (7.00, 3.10)')
+    # A collision: the margin is at most 0 whatever the recorded poses say.
+    assert verdict.first_failure.margin == 0.0
 
 
 def test_leaving_the_zone_fails_the_run_and_says_where(judged):
@@ -661,9 +726,9 @@ def test_too_long_a_run_fails_max_duration(judged):
 
 def test_localization_error_is_measured_against_interpolated_truth(judged):
     record = good_record()
-    # Truth at t = 2 and 3 is x = 2.2 and 2.3 (y = 2): at t = 2.5 it is (2.25, 2.0).
-    # An estimate (2.25, 2.3) is 0.3 m off; against the nearest sample it would be more.
-    record.estimate = np.array([[2.5, 2.25, 2.3, 0.0], [3.0, 2.3, 2.1, 0.0]])
+    # Truth at t = 2 and 3 is x = 2.2 and 2.3 (y = 3.1): at t = 2.5 it is (2.25, 3.1).
+    # An estimate (2.25, 3.4) is 0.3 m off; against the nearest sample it would be more.
+    record.estimate = np.array([[2.5, 2.25, 3.4, 0.0], [3.0, 2.3, 3.2, 0.0]])
     verdict = judge(judged, record)
     assert verdict.first_failure.detail == (
         'max_localization_error_m: 0.30 m at t=2.5 s > 0.2 m')

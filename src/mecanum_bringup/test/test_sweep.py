@@ -8,7 +8,7 @@ from mecanum_bringup.scenario_loader import load_scenario
 from mecanum_bringup.sweep import (
     load_sweep, SweepError, variant_count, variant_documents, variants)
 from mecanum_bringup.sweep_runner import prepare, ProgressBar
-from mecanum_bringup.sweep_store import ResultsStore, StoreError, VariantRow
+from mecanum_bringup.sweep_store import read_rows, ResultsStore, StoreError, VariantRow
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1]
@@ -239,6 +239,36 @@ def test_the_store_keeps_rows_across_opens_and_refuses_another_sweep(tmp_path):
         store.add(row(7))
         count = sqlite3.connect(str(path)).execute('SELECT COUNT(*) FROM variants').fetchone()
         assert count == (3,)
+
+
+def test_the_store_keeps_each_criterions_margin_and_reads_old_stores_without(tmp_path):
+    path = tmp_path / 'results.sqlite'
+    with_margins = row(1, 'UNEXPECTED')
+    with_margins.margins = {'no_collision': 0.12, 'step 1': -2.5}
+    with ResultsStore(path, 's', '{"axes": 1}') as store:
+        store.add(with_margins)
+        store.add(row(2))
+    rows = read_rows(path)
+    assert rows[0].margins == {'no_collision': 0.12, 'step 1': -2.5}
+    assert rows[0].least_margin == -2.5
+    assert (rows[1].margins, rows[1].least_margin) == ({}, None)
+    # A store from before the column: read as no margins; opened, it gets the column.
+    old = tmp_path / 'old.sqlite'
+    db = sqlite3.connect(str(old))
+    db.execute('CREATE TABLE sweep (key TEXT PRIMARY KEY, value TEXT)')
+    db.executemany('INSERT INTO sweep VALUES (?, ?)', [('name', 's'), ('fingerprint', 'f')])
+    db.execute('CREATE TABLE variants (idx INTEGER PRIMARY KEY, name TEXT, values_json TEXT, '
+               'status TEXT, verdict TEXT, expected TEXT, criteria_json TEXT, '
+               'first_failure TEXT, sim_time_s REAL, wall_time_s REAL, run_dir TEXT, '
+               'error TEXT, worker TEXT, finished_at REAL)')
+    db.execute("INSERT INTO variants VALUES (0, 'v', '{}', 'OK', 'pass', 'pass', '{}', '', "
+               "1.0, 1.0, '', '', '', 1.0)")
+    db.commit()
+    db.close()
+    assert read_rows(old)[0].margins == {}
+    with ResultsStore(old, 's', 'f') as store:
+        store.add(with_margins)
+        assert [r.margins for r in store.rows()] == [{}, with_margins.margins]
 
 
 def test_the_progress_line_counts_failures_and_estimates_the_rest(tmp_path):

@@ -261,6 +261,27 @@ def test_a_report_without_clearances_has_no_clearance_section(rows, tmp_path):
     assert 'Zone clearance' not in text and 'least zone clearance' not in text
 
 
+def test_a_report_gives_each_criterions_least_margin_and_plots_the_margins(rows, tmp_path):
+    assert 'margin' not in rates_table(rows)        # no variant has margins: no column
+    plain = write_report(rows, 'tour', tmp_path / 'plain', ['world']).read_text(
+        encoding='utf-8')
+    assert 'Margins along each axis' not in plain and not (tmp_path / 'plain' /
+                                                           'margins.png').exists()
+    rows[0].margins = {'no_collision': 0.30, 'step 1': 20.0}
+    rows[1].margins = {'no_collision': 0.05, 'step 1': -3.0}
+    table = rates_table(rows)
+    assert 'least margin' in table.splitlines()[0]
+    lines = {line.split()[0] + (' ' + line.split()[1] if line.startswith('step') else ''):
+             line for line in table.splitlines()[1:]}
+    assert lines['no_collision'].rstrip().endswith('0.050 m (tour_0001)')
+    assert '-3.000 s (tour_0001)' in lines['step 1']
+    assert lines['verdict'].rstrip().endswith('-')
+    text = write_report(rows, 'tour', tmp_path / 'out', ['world']).read_text(encoding='utf-8')
+    assert '0.050 m (tour_0001)' in text
+    match = re.search(r'alt="margins along each axis"', text)
+    assert match and (tmp_path / 'out' / 'margins.png').read_bytes()[:8] == PNG_MAGIC
+
+
 # --- the steps named by what they do ---------------------------------------------------
 GOAL_A = {'goal': {'x': 4.0, 'y': 1.2, 'yaw': -1.5708, 'expect': 'any'}}
 GOAL_B = {'goal': {'x': 4.0, 'y': 2.3}}

@@ -11,7 +11,8 @@ import pytest
 def test_a_judged_variant_stores_its_criteria_and_least_zone_clearance():
     # The footprint 0.1 m over the border at t = 2 s (radius 0.2 m): clearance -0.1 m.
     zone = ZoneResult('stay_in_zone', False, 'stay_in_zone: least clearance -0.100 m ...',
-                      -0.1, 2.0, 3.9, 2.0, 0.2)
+                      margin=-0.1, margin_unit='m', min_clearance_m=-0.1, t_s=2.0, x_m=3.9,
+                      y_m=2.0, footprint_radius_m=0.2)
     verdict = Verdict('tour_0001', 'pass', 'fail',
                       (CriterionResult('step 1', True, 'step 1 goal: reached'), zone))
     result = ScenarioResult('tour_0001', 'pass', verdict, 12.5, 30.0)
@@ -21,6 +22,7 @@ def test_a_judged_variant_stores_its_criteria_and_least_zone_clearance():
     assert row.criteria == {'step 1': True, 'stay_in_zone': False}
     assert row.first_failure == 'stay_in_zone: least clearance -0.100 m ...'
     assert row.min_zone_clearance_m == pytest.approx(-0.1)
+    assert row.margins == {'stay_in_zone': -0.1}     # step 1 has none here
     assert (row.sim_time_s, row.wall_time_s, row.run_dir) == (12.5, 30.0,
                                                               '/sweep/runs/tour_0001')
     assert row.worker and row.finished_at > 0

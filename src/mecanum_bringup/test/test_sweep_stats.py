@@ -3,8 +3,9 @@
 import sqlite3
 
 from mecanum_bringup.sweep_stats import (
-    axis_clearances, axis_rates, clearance_order, compare, criterion_order, criterion_rates,
-    least_clearance, LeastClearance, Rate, summary_axes, value_label, variant_changes,
+    axis_clearances, axis_margins, axis_rates, clearance_order, compare, criterion_order,
+    criterion_rates, least_clearance, least_margins, LeastClearance, LeastMargin,
+    margin_group_order, margin_groups, Rate, summary_axes, value_label, variant_changes,
     wilson_interval, worst_variants)
 from mecanum_bringup.sweep_store import read_rows, ResultsStore, VariantRow
 import pytest
@@ -333,3 +334,25 @@ def test_a_store_from_before_the_clearance_column_still_reads_and_resumes(tmp_pa
         store.add(row(1, 'UNEXPECTED', {'stay_in_zone': F}, {'seed': 1},
                       min_zone_clearance_m=-0.02))
     assert [r.min_zone_clearance_m for r in read_rows(path)] == [None, -0.02]
+
+
+def test_margins_by_group_least_per_criterion_and_along_an_axis():
+    rows = [
+        row(0, 'OK', values={'seed': 1},
+            margins={'step 1': 30.0, 'step 2': 12.5, 'no_collision': 0.30}),
+        row(1, 'UNEXPECTED', values={'seed': 2},
+            margins={'step 1': -4.0, 'no_collision': 0.05, 'stay_in_zone': -0.1}),
+        row(2, 'OK', values={'seed': 1}, margins={'no_collision': 0.05}),
+        row(3, 'ERROR', values={'seed': 2}),
+    ]
+    # The steps as one group: the least of them.
+    assert margin_groups(rows[0]) == {'steps': 12.5, 'no_collision': 0.30}
+    assert margin_group_order(rows) == ['steps', 'no_collision', 'stay_in_zone']
+    least = least_margins(rows)
+    # A tie (0.05 twice) goes to the lower index.
+    assert least['no_collision'] == LeastMargin('no_collision', 0.05, 'tour_0001', 3)
+    assert least['step 1'] == LeastMargin('step 1', -4.0, 'tour_0001', 2)
+    assert least['step 2'] == LeastMargin('step 2', 12.5, 'tour_0000', 1)
+    assert axis_margins(rows, 'seed', 'no_collision') == [
+        ('1', [(0.30, False), (0.05, False)]), ('2', [(0.05, True)])]
+    assert axis_margins(rows, 'seed', 'stay_in_zone') == [('1', []), ('2', [(-0.1, True)])]
