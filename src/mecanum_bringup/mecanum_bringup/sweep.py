@@ -11,8 +11,19 @@ replaces a single pass or fail. One sweep per YAML file; units as in scenario fi
                                        # this file
       mode: random                     # grid (default: every combination of the axes'
                                        # lists) | random (samples draws from master_seed)
-      samples: 50                      # random: how many variants
-      master_seed: 1                   # random: the same file gives the same variants
+                                       # | search (rounds steered toward failures)
+      samples: 50                      # random, search: how many variants (the budget)
+      master_seed: 1                   # random, search: the same file gives the same
+                                       # variants (search: and the same results)
+      search:                          # search only; every key optional
+        objective: least               # the margin to drive down: least (of every
+                                       # line's), steps, no_collision, stay_in_zone,
+                                       # max_localization_error_m, max_duration_s
+        batch: 8                       # variants per round (run at once with --jobs)
+        elite_fraction: 0.2            # the best share of the runs so far that the
+                                       # next round's distributions are fitted to
+        smoothing: 0.8                 # fitted share of each draw (the rest: the axis's
+                                       # own distribution)
       axes:                            # at least one; each a list of values, or in random
                                        # mode a distribution
         scenario: [apartment_tour, ../scenarios/kitchen_run.yaml]   # instead of
@@ -42,7 +53,9 @@ replaces a single pass or fail. One sweep per YAML file; units as in scenario fi
 In grid mode every axis is a list and the variants are their cartesian product, in the
 order of the axes above (the last axis varies fastest). In random mode variant i draws
 each axis from its own generator seeded by (master_seed, i), so adding samples keeps
-the earlier variants and a variant's values do not depend on the other axes.
+the earlier variants and a variant's values do not depend on the other axes. In search
+mode the first round is drawn so too and each later one from distributions fitted to
+the variants that came closest to failing (:mod:`mecanum_bringup.sweep_search`).
 
 :func:`load_sweep` raises :class:`SweepError` naming the file, the line and the key,
 e.g. ``sweep.yaml:7: axes.seed.range: must be [lo, hi] integers with lo < hi``.
@@ -71,8 +84,18 @@ PathLike = Union[str, Path]
 #: The axes, in the order in which grid variants vary them (the last fastest).
 AXES = ('scenario', 'seed', 'world', 'floor_friction_coefficient', 'sensor_noise_scale',
         'spawn', 'person', 'goals', 'fault', 'fault_onset_s')
-MODES = ('grid', 'random')
-SWEEP_KEYS = ('name', 'scenario', 'mode', 'samples', 'master_seed', 'axes', 'description')
+MODES = ('grid', 'random', 'search')
+#: Modes that draw samples variants from master_seed (distributions allowed).
+DRAWN_MODES = ('random', 'search')
+SWEEP_KEYS = ('name', 'scenario', 'mode', 'samples', 'master_seed', 'axes', 'description',
+              'search')
+SEARCH_KEYS = ('objective', 'batch', 'elite_fraction', 'smoothing')
+#: A search's objective: the least margin of every line a variant has.
+LEAST = 'least'
+#: What a search's objective may name: the least of them, the steps (each variant's
+#: least step margin, s) or a verdict line with a margin.
+OBJECTIVES = (LEAST, 'steps', 'no_collision', 'stay_in_zone', 'max_localization_error_m',
+              'max_duration_s')
 PERSON_KEYS = ('name', 'speed_m_s', 'path', 'loop', 'radius_m')
 #: Most variants a sweep may have (a typo in a grid should not start a month of runs).
 MAX_VARIANTS = 10000
@@ -80,6 +103,21 @@ MAX_VARIANTS = 10000
 
 class SweepError(ValueError):
     """A malformed sweep file; the message names the file, the line and the key."""
+
+
+@dataclass(frozen=True)
+class SearchSpec:
+    """A search's settings (see the module docstring and mecanum_bringup.sweep_search)."""
+
+    objective: str = LEAST
+    batch: int = 8
+    elite_fraction: float = 0.2
+    smoothing: float = 0.8
+
+    def as_dict(self) -> Dict[str, Any]:
+        """Return the settings as a mapping (part of the sweep's fingerprint)."""
+        return {'objective': self.objective, 'batch': self.batch,
+                'elite_fraction': self.elite_fraction, 'smoothing': self.smoothing}
 
 
 @dataclass(frozen=True)
@@ -101,12 +139,16 @@ class Sweep:
     #: also scenario_file and scenario_document.
     scenarios: Dict[str, Tuple[Path, Dict[str, Any]]] = field(
         default_factory=dict, compare=False, repr=False)
+    #: mode search: its settings (None in the other modes).
+    search: Optional[SearchSpec] = None
 
     @property
     def fingerprint(self) -> str:
         """Return what fixes the variants (mode, samples, seed, axes) as canonical JSON."""
         fixed = {'scenario': str(self.scenario_file), 'mode': self.mode,
                  'samples': self.samples, 'master_seed': self.master_seed, 'axes': self.axes}
+        if self.search is not None:
+            fixed['search'] = self.search.as_dict()
         if self.scenarios:
             fixed['scenarios'] = {name: str(path) for name, (path, _) in self.scenarios.items()}
         return json.dumps(fixed, sort_keys=True)
@@ -188,16 +230,21 @@ class _Parser(DocumentChecker):
         goal_count = min(_goal_count(document) for _, document in
                          (scenarios.values() or [(scenario_file, scenario_doc)]))
         samples = master_seed = 0
-        if mode == 'random':
+        if mode in DRAWN_MODES:
             for key in ('samples', 'master_seed'):
                 if key not in raw:
-                    self.fail('sweep', f"missing key '{key}' (needed in random mode)")
+                    self.fail('sweep', f"missing key '{key}' (needed in {mode} mode)")
             samples = self.integer(raw['samples'], 'sweep.samples', 1)
             master_seed = self.integer(raw['master_seed'], 'sweep.master_seed', 0)
         else:
             for key in ('samples', 'master_seed'):
                 if key in raw:
-                    self.fail(f'sweep.{key}', 'is only allowed with mode: random')
+                    self.fail(f'sweep.{key}', 'is only allowed with mode: random or search')
+        search = None
+        if mode == 'search':
+            search = self.search(raw.get('search'))
+        elif 'search' in raw:
+            self.fail('sweep.search', 'is only allowed with mode: search')
         axes_raw = self.mapping(axes_raw, 'sweep.axes', (), AXES)
         if not axes_raw:
             self.fail('sweep.axes', f'needs at least one axis of {", ".join(AXES)}')
@@ -209,12 +256,29 @@ class _Parser(DocumentChecker):
         sweep = Sweep(name=name, source=self.path, scenario_file=scenario_file, mode=mode,
                       axes=axes, samples=samples, master_seed=master_seed,
                       description=description, goal_count=goal_count,
-                      scenario_document=scenario_doc, scenarios=scenarios)
+                      scenario_document=scenario_doc, scenarios=scenarios, search=search)
         count = variant_count(sweep)
         if count > MAX_VARIANTS:
             self.fail('sweep.axes' if mode == 'grid' else 'sweep.samples',
                       f'{count} variants, more than the {MAX_VARIANTS} allowed')
         return sweep
+
+    def search(self, value: Any) -> SearchSpec:
+        """Return the checked sweep.search settings (absent: the defaults)."""
+        raw = self.mapping(value if value is not None else {}, 'sweep.search', (), SEARCH_KEYS)
+        spec = SearchSpec()
+        objective = self.choice(raw.get('objective', spec.objective), 'sweep.search.objective',
+                                OBJECTIVES)
+        batch = self.integer(raw.get('batch', spec.batch), 'sweep.search.batch', 1)
+        fraction = self.number(raw.get('elite_fraction', spec.elite_fraction),
+                               'sweep.search.elite_fraction', minimum=0.0)
+        if not 0.0 < fraction <= 1.0:
+            self.fail('sweep.search.elite_fraction', f'must be in (0, 1], not {fraction!r}')
+        smoothing = self.number(raw.get('smoothing', spec.smoothing),
+                                'sweep.search.smoothing', minimum=0.0)
+        if smoothing > 1.0:
+            self.fail('sweep.search.smoothing', f'must be in [0, 1], not {smoothing!r}')
+        return SearchSpec(objective, batch, float(fraction), float(smoothing))
 
     def scenario(self, value: Any, key: str = 'sweep.scenario') -> Tuple[Path, Dict[str, Any]]:
         """Return the scenario file (relative to the sweep, or a shipped name) and its doc."""
@@ -241,7 +305,7 @@ class _Parser(DocumentChecker):
             return self.distribution(axis, value, key, mode, goal_count)
         if not isinstance(value, list) or not value:
             self.fail(key, 'must be a non-empty list of values'
-                      + (' or a distribution' if mode == 'random' else ''))
+                      + (' or a distribution' if mode in DRAWN_MODES else ''))
         check = {
             'seed': lambda v, k: self.integer(v, k, 0),
             'world': self.world,
@@ -265,8 +329,9 @@ class _Parser(DocumentChecker):
             self.fail(key, 'must be a non-empty list of values (no distribution for '
                       f'{axis})')
         kind = kinds[axis]
-        if mode != 'random':
-            self.fail(key, f'a distribution ({kind}) needs mode: random; a grid takes lists')
+        if mode not in DRAWN_MODES:
+            self.fail(key, f'a distribution ({kind}) needs mode: random or search; a grid '
+                      'takes lists')
         self.mapping(value, key, (kind,), ())
         bounds = value[kind]
         where = f'{key}.{kind}'
@@ -462,23 +527,31 @@ def shipped_scenarios_folder() -> Path:
 
 def variant_count(sweep: Sweep) -> int:
     """Return how many variants the sweep has."""
-    if sweep.mode == 'random':
+    if sweep.mode in DRAWN_MODES:
         return sweep.samples
     return math.prod(len(values) for values in sweep.axes.values())
 
 
 def variants(sweep: Sweep) -> List[Variant]:
-    """Return the sweep's variants, in order (the same for the same file, always)."""
+    """
+    Return the sweep's variants, in order (the same for the same file, always).
+
+    A search's variants depend on the results: mecanum_bringup.sweep_search draws them a
+    round at a time (ValueError here).
+    """
+    if sweep.mode == 'search':
+        raise ValueError(f'{sweep.name}: a search draws its variants a round at a time '
+                         '(mecanum_bringup.sweep_search.round_variants)')
     if sweep.mode == 'grid':
         names = list(sweep.axes)
         return [Variant(index, dict(zip(names, combination))) for index, combination in
                 enumerate(itertools.product(*(sweep.axes[name] for name in names)))]
-    return [Variant(index, {axis: _draw(axis, spec, sweep, index)
+    return [Variant(index, {axis: draw_value(axis, spec, sweep, index)
                             for axis, spec in sweep.axes.items()})
             for index in range(sweep.samples)]
 
 
-def _draw(axis: str, spec: Any, sweep: Sweep, index: int) -> Any:
+def draw_value(axis: str, spec: Any, sweep: Sweep, index: int) -> Any:
     """Draw one axis's value for variant index (its own generator: master seed, index)."""
     rng = random.Random(f'{sweep.master_seed}/{index}/{axis}')
     if isinstance(spec, list):

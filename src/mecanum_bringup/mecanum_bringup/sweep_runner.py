@@ -69,16 +69,18 @@ class PreparedVariant:
     world_document: Optional[Dict[str, Any]]
 
 
-def prepare(sweep: Sweep, check_dir: Path) -> List[PreparedVariant]:
+def prepare(sweep: Sweep, check_dir: Path,
+            chosen: Optional[Sequence[Variant]] = None) -> List[PreparedVariant]:
     """
-    Return every variant's documents, each checked as a scenario file would be.
+    Return every variant's documents (or chosen's), each checked as a scenario file would be.
 
     The documents are written under check_dir and loaded with load_scenario, so a
     variant that is not a valid scenario (e.g. a spawn in a wall) raises SweepError
-    naming the variant and its values, before anything runs.
+    naming the variant and its values, before anything runs. A search's variants are
+    chosen a round at a time (sweep_search.round_variants).
     """
     prepared = []
-    for variant in variants(sweep):
+    for variant in (variants(sweep) if chosen is None else chosen):
         name = variant.name(sweep.name)
         world_source = None
         if 'person' in variant.values:
@@ -291,8 +293,13 @@ def _worker_init() -> None:
 
 def run_local(todo: Sequence[PreparedVariant], out_dir: Path, options: Dict[str, Any],
               jobs: int, on_row: Callable[[VariantRow], None],
-              say: Callable[[str], None]) -> List[str]:
-    """Run the variants jobs at once in worker processes; return why some did not run."""
+              say: Callable[[str], None], keep_system: bool = False) -> List[str]:
+    """
+    Run the variants jobs at once in worker processes; return why some did not run.
+
+    keep_system: with one job, the warm system stays for the next call (a search's next
+    round; release_kept_system ends it), else it ends here.
+    """
     problems: List[str] = []
     if jobs <= 1:
         try:
@@ -303,7 +310,8 @@ def run_local(todo: Sequence[PreparedVariant], out_dir: Path, options: Dict[str,
                 if row is not None:
                     on_row(row)
         finally:
-            release_kept_system()
+            if not keep_system or INTERRUPTED.is_set():
+                release_kept_system()
         return problems
     # spawn: a fresh interpreter per worker (no forked rclpy or reader threads).
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context('spawn'),
@@ -444,35 +452,102 @@ def run_sweep(sweep: Sweep, out_dir: Path, jobs: int = 1, ray_address: Optional[
     # of its runs' documents is written over.
     with ResultsStore(out_dir / 'results.sqlite', sweep.name, sweep.fingerprint,
                       input_digests(sweep)) as store:
-        prepared = prepare(sweep, out_dir / 'runs')
-        done_before = store.done_indices()
-        todo = [item for item in prepared if item.variant.index not in done_before]
-        say(f'{sweep.name}: {len(prepared)} variants, {len(done_before)} done before, '
-            f'{len(todo)} to run ' + (f'on Ray at {ray_address}' if ray_address
-                                      else f'{jobs} at once') + f'; results in {store.path}')
-        bar = ProgressBar(len(prepared), len(done_before), progress_stream)
-        ran = []
-
-        def on_row(row: VariantRow) -> None:
-            store.add(row)
-            ran.append(row)
-            bar.advance(row)
-
-        if todo:
-            bar.draw()
-            with stopping_cleanly_on_signals():
-                if ray_address:
-                    problems = run_on_ray(ray_address, todo, out_dir,
-                                          dict(options, warm=False), retries, on_row, say)
-                else:
-                    problems = run_local(todo, out_dir, options, jobs, on_row, say)
-            bar.close()
-        else:
-            problems = []
+        run = _run_search if sweep.mode == 'search' else _run_all
+        summary = run(sweep, store, out_dir, jobs, ray_address, options, retries, say,
+                      progress_stream)
         rows = store.rows()
     write_outputs(sweep, rows, out_dir, say)
-    return {'total': len(prepared), 'done': len(rows), 'ran': len(ran),
-            'skipped': len(done_before), 'problems': problems,
+    return dict(summary, done=len(rows))
+
+
+def _run_all(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
+             ray_address: Optional[str], options: Dict[str, Any], retries: int,
+             say: Callable[[str], None], progress_stream: TextIO) -> Dict[str, Any]:
+    """Run every variant of a grid or random sweep that has no row (all checked first)."""
+    prepared = prepare(sweep, out_dir / 'runs')
+    done_before = store.done_indices()
+    todo = [item for item in prepared if item.variant.index not in done_before]
+    say(f'{sweep.name}: {len(prepared)} variants, {len(done_before)} done before, '
+        f'{len(todo)} to run ' + (f'on Ray at {ray_address}' if ray_address
+                                  else f'{jobs} at once') + f'; results in {store.path}')
+    bar = ProgressBar(len(prepared), len(done_before), progress_stream)
+    ran: List[VariantRow] = []
+
+    def on_row(row: VariantRow) -> None:
+        store.add(row)
+        ran.append(row)
+        bar.advance(row)
+
+    problems: List[str] = []
+    if todo:
+        bar.draw()
+        problems = _run_batch(todo, out_dir, jobs, ray_address, options, retries, on_row, say)
+        bar.close()
+    return {'total': len(prepared), 'ran': len(ran), 'skipped': len(done_before),
+            'problems': problems,
+            'interrupted': interrupted_by() if INTERRUPTED.is_set() else None}
+
+
+def _run_batch(todo: Sequence[PreparedVariant], out_dir: Path, jobs: int,
+               ray_address: Optional[str], options: Dict[str, Any], retries: int,
+               on_row: Callable[[VariantRow], None], say: Callable[[str], None],
+               keep_system: bool = False) -> List[str]:
+    """Run prepared variants here (jobs at once) or on Ray; return why some did not run."""
+    with stopping_cleanly_on_signals():
+        if ray_address:
+            return run_on_ray(ray_address, todo, out_dir, dict(options, warm=False), retries,
+                              on_row, say)
+        return run_local(todo, out_dir, options, jobs, on_row, say, keep_system)
+
+
+def _run_search(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
+                ray_address: Optional[str], options: Dict[str, Any], retries: int,
+                say: Callable[[str], None], progress_stream: TextIO) -> Dict[str, Any]:
+    """
+    Run a search's rounds (sweep_search): each drawn from the rows of the rounds before.
+
+    A round runs its variants that have no row (all at once with --jobs or --ray); the
+    next round starts when every variant of this one has a row. A round left with a
+    variant that could not run (or interrupted) ends the search there, so that the next
+    start, which runs that variant again, draws the later rounds from the same rows.
+    """
+    from mecanum_bringup.sweep_search import round_count, round_variants
+    done_before = store.done_indices()
+    batch = sweep.search.batch
+    rounds = round_count(sweep)
+    say(f'{sweep.name}: search of {sweep.samples} variants in {rounds} rounds of {batch} '
+        f'(objective: {sweep.search.objective}), {len(done_before)} done before, '
+        + (f'on Ray at {ray_address}' if ray_address else f'{jobs} at once')
+        + f'; results in {store.path}')
+    bar = ProgressBar(sweep.samples, len(done_before), progress_stream)
+    ran: List[VariantRow] = []
+    problems: List[str] = []
+
+    def on_row(row: VariantRow) -> None:
+        store.add(row)
+        ran.append(row)
+        bar.advance(row)
+
+    try:
+        for number in range(rounds):
+            chosen = round_variants(sweep, number, store.rows())
+            todo = [item for item in prepare(sweep, out_dir / 'runs', chosen)
+                    if item.variant.index not in store.done_indices()]
+            if todo:
+                bar.draw()
+                problems += _run_batch(todo, out_dir, jobs, ray_address, options, retries,
+                                       on_row, say, keep_system=True)
+            missing = [item.name for item in todo
+                       if item.variant.index not in store.done_indices()]
+            if missing:
+                say(f'{sweep.name}: round {number + 1} of {rounds} has no result for '
+                    f'{", ".join(missing)}: the search stops here (run it again to go on)')
+                break
+    finally:
+        release_kept_system()
+        bar.close()
+    return {'total': sweep.samples, 'ran': len(ran), 'skipped': len(done_before),
+            'problems': problems,
             'interrupted': interrupted_by() if INTERRUPTED.is_set() else None}
 
 

@@ -165,9 +165,23 @@ BAD = [
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n'
      '    sensor_noise_scale: [0.5, high]\n',
      "sweep.yaml:5: sweep.axes.sensor_noise_scale[1]: must be a number, not 'high'"),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  search: {batch: 4}\n'
+     '  axes: {seed: [1]}\n', 'sweep.yaml:4: sweep.search: is only allowed with mode: search'),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: search\n  axes:\n'
+     '    seed: [1]\n', "sweep.yaml:1: sweep: missing key 'samples' (needed in search mode)"),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: search\n  samples: 8\n'
+     '  master_seed: 1\n  search: {objective: luck}\n  axes: {seed: [1]}\n',
+     'sweep.yaml:7: sweep.search.objective: must be one of least, steps, no_collision, '
+     "stay_in_zone, max_localization_error_m, max_duration_s, not 'luck'"),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: search\n  samples: 8\n'
+     '  master_seed: 1\n  search: {elite_fraction: 0}\n  axes: {seed: [1]}\n',
+     'sweep.yaml:7: sweep.search.elite_fraction: must be in (0, 1], not 0'),
+    ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: search\n  samples: 8\n'
+     '  master_seed: 1\n  search: {batch: 0}\n  axes: {seed: [1]}\n',
+     'sweep.yaml:7: sweep.search.batch: must be an integer >= 1, not 0'),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  mode: sometimes\n'
      '  axes: {seed: [1]}\n',
-     "sweep.yaml:4: sweep.mode: must be one of grid, random, not 'sometimes'"),
+     "sweep.yaml:4: sweep.mode: must be one of grid, random, search, not 'sometimes'"),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes: {seed: [1]}\nextra: 1\n',
      'sweep.yaml:5: extra: unknown top-level key (only "sweep:" is allowed)'),
     ('sweep:\n  name: s\n  scenario: three_goals.yaml\n  axes:\n    person: [{speed_m_s: 0}]\n',
