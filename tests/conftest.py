@@ -9,6 +9,7 @@ import math
 import os
 from pathlib import Path
 import re
+import shlex
 import shutil
 import signal
 import subprocess
@@ -50,13 +51,38 @@ def needs_ros2():
                     'tools/ros2_upstream.py)')
 
 
+def native_stacks(pid: int) -> str:
+    """Return every thread's native stack of a live process (gdb), or why there is none."""
+    if shutil.which('gdb') is None:
+        return f'{pid}: no gdb to show its stacks'
+    try:
+        result = subprocess.run(['gdb', '-p', str(pid), '-batch', '-ex', 'thread apply all bt 25'],
+                                capture_output=True, text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        return f'{pid}: gdb took more than 60 s'
+    frames = [line for line in result.stdout.splitlines() if line.startswith(('#', 'Thread'))]
+    return f'--- native stacks of {pid}:\n' + '\n'.join(frames)
+
+
 def interrupt_group(process: subprocess.Popen, timeout: float = 15.0) -> int:
-    """Ctrl-C a process's group (as the shell does), SIGKILL it after timeout; return the code."""
+    """
+    Ctrl-C a process's group (as the shell does), SIGKILL it after timeout; return the code.
+
+    Before the SIGKILL, the native stacks of the group's processes are printed (the test's
+    captured output): a process stuck in C code (e.g. in its DDS participant's
+    destruction) says where.
+    """
     if process.poll() is None:
         os.killpg(process.pid, signal.SIGINT)
         try:
             process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
+            group = subprocess.run(['pgrep', '-g', str(process.pid)], capture_output=True,
+                                   text=True).stdout.split()
+            print(f'{shlex.join(map(str, process.args))}: still running {timeout:g} s after '
+                  'Ctrl-C')
+            for pid in group:
+                print(native_stacks(int(pid)))
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
     return process.returncode
