@@ -278,3 +278,54 @@ def test_a_search_runs_its_rounds_two_at_a_time_and_resumes_to_the_same_variants
     assert again[4].values == rows[4].values and again[4].status == rows[4].status
     assert [row.finished_at for i, row in enumerate(again) if i != 4] == [
         row.finished_at for i, row in enumerate(rows) if i != 4]
+
+
+ONE_FAILURE = """
+sweep:
+  name: one_failure
+  scenario: refusals.yaml
+  axes:
+    seed: [1]
+    goals: [[1, 2]]
+"""
+
+
+def test_a_failure_shrinks_to_the_goal_that_fails_and_replays_with_one_command(
+        tmp_path, sweep_env):
+    """
+    run_sweep --shrink: the failing variant (seed 1, goals 1 and 2) shrinks to goal 1 alone.
+
+    Goal 1 (outside the map) is refused with another code than the scenario expects;
+    goal 2 is refused as expected. Worked out: the seed dropped still fails (kept), goal 1
+    dropped passes, goal 2 dropped fails (kept): 3 runs. The command it prints replays
+    the smallest variant, which fails the same way again.
+    """
+    _, env, _ = sweep_env
+    sweep_path = tmp_path / 'one.yaml'
+    sweep_path.write_text(textwrap.dedent(ONE_FAILURE))
+    out = tmp_path / 'one'
+    process = run_sweep(sweep_path, out, env)
+    output, _ = process.communicate(timeout=600)
+    assert process.returncode == 0 and statuses(out) == {0: 'UNEXPECTED'}, output
+    shrinking = subprocess.run(
+        [sys.executable, '-m', 'mecanum_bringup.sweep_runner', str(sweep_path), '--out',
+         str(out), '--shrink', '0'], env=env, capture_output=True, text=True, timeout=900)
+    assert shrinking.returncode == 0, shrinking.stdout + shrinking.stderr
+    report = json.loads((out / 'shrink' / 'shrink.json').read_text())
+    assert report['smallest'] == {'goals': [1]}, report
+    assert [(a['change'], a['kept']) for a in report['attempts']] == [
+        ('seed: dropped', True), ('goals: goal 1 dropped', False),
+        ('goals: goal 2 dropped', True)]
+    assert report['runs'] == 3
+    command = next(line for line in shrinking.stdout.splitlines()
+                   if line.startswith('replay it: '))[len('replay it: '):]
+    assert command.startswith('ros2 run mecanum_bringup run_scenarios ')
+    scenario_file, replay_out = command.split()[4], command.split()[-1]
+    replay = subprocess.run(
+        [sys.executable, '-m', 'mecanum_bringup.scenario_runner', scenario_file, '--record',
+         '--out', replay_out], env=env, capture_output=True, text=True, timeout=600)
+    name = Path(scenario_file).parent.name
+    summary = json.loads((Path(replay_out) / name / 'summary.json').read_text())
+    assert summary['verdict'] == 'fail' and summary['steps'][0]['error_code'] != 0, summary
+    assert (Path(replay_out) / name / 'bag').is_dir()
+    assert replay.returncode == 1, replay.stdout      # an unexpected verdict

@@ -227,7 +227,7 @@ class _Parser(DocumentChecker):
             self.fail('sweep', "missing key 'scenario'")
         else:
             scenario_file, scenario_doc = self.scenario(raw['scenario'])
-        goal_count = min(_goal_count(document) for _, document in
+        goal_count = min(goal_steps(document) for _, document in
                          (scenarios.values() or [(scenario_file, scenario_doc)]))
         samples = master_seed = 0
         if mode in DRAWN_MODES:
@@ -438,7 +438,7 @@ class _Parser(DocumentChecker):
         return indices
 
 
-def _goal_count(document: Dict[str, Any]) -> int:
+def goal_steps(document: Dict[str, Any]) -> int:
     """Return the number of goal steps of a scenario document."""
     return sum(1 for step in document['scenario'].get('steps') or []
                if isinstance(step, dict) and 'goal' in step)

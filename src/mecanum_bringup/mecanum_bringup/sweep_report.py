@@ -55,7 +55,7 @@ PathLike = Union[str, Path]
 #: Longest first failure shown in a table cell or a JUnit message.
 MAX_DETAIL_CHARS = 200
 #: The files of a run folder that the page links, if they exist.
-RUN_FILES = ('run.png', 'summary.json', 'bag')
+RUN_FILES = ('run.png', 'summary.json', 'bag', 'scenario.yaml')
 #: The variant's scenario file in its run folder (sweep_runner.write_variant_files).
 VARIANT_SCENARIO = 'scenario.yaml'
 #: A step's criterion name, as the judge names it (scenario_judge: 'step 1' = steps[0]).
@@ -422,6 +422,23 @@ def plot_axis_margins(rows: Sequence[VariantRow], axes: Sequence[str],
     return True
 
 
+def replay_command(row: VariantRow, runs_base: Optional[PathLike] = None) -> str:
+    """
+    Return the command that runs a variant again, exactly, recorded ('' without a folder).
+
+    The scenario file the sweep wrote for it (runs/NAME/scenario.yaml, with its own
+    world file beside it when the person axis changed it), run by run_scenarios with
+    --record into the sweep folder's replay/ (a run folder relative to runs_base).
+    """
+    if not row.run_dir:
+        return ''
+    run_dir = Path(row.run_dir)
+    if not run_dir.is_absolute() and runs_base is not None:
+        run_dir = Path(runs_base) / run_dir
+    return (f'ros2 run mecanum_bringup run_scenarios {run_dir / VARIANT_SCENARIO} --record '
+            f'--out {run_dir.parent.parent / "replay"}')
+
+
 def _values_text(row: VariantRow) -> str:
     return '\n'.join(f'{axis} = {value_label(value)}' for axis, value in row.values.items())
 
@@ -433,9 +450,10 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
     A testcase is named by the row's name, classname = sweep_name, time = its wall-clock
     time. Status UNEXPECTED gives a <failure> (message = first_failure), ERROR an
     <error> (message = error); OK rows (expected failures included) pass. Each testcase
-    has <properties> with the variant's axis values (as JSON-ish labels), its status and,
-    when measured, min_zone_clearance_m (m, 3 decimals), and a <system-out> with the
-    values, the failed criteria, the least zone clearance and the run folder.
+    has <properties> with the variant's axis values (as JSON-ish labels), its status,
+    when measured, min_zone_clearance_m (m, 3 decimals), and replay (the command that
+    runs it again, recorded: replay_command), and a <system-out> with the values, the
+    failed criteria, the least zone clearance, the run folder and that command.
     """
     rows = sorted(rows, key=lambda row: row.index)
 
@@ -460,6 +478,10 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
         if clearance is not None and math.isfinite(clearance):
             ElementTree.SubElement(properties, 'property', {
                 'name': 'min_zone_clearance_m', 'value': f'{clearance:.3f}'})
+        replay = replay_command(row)
+        if replay:
+            ElementTree.SubElement(properties, 'property', {
+                'name': 'replay', 'value': xml_text(replay)})
         if row.status == 'ERROR':
             error = ElementTree.SubElement(case, 'error', {
                 'message': xml_text(one_line(row.error, 500)), 'type': 'ScenarioError'})
@@ -476,7 +498,8 @@ def junit_xml(rows: Sequence[VariantRow], sweep_name: str) -> str:
         system_out.text = xml_text(
             f'{_values_text(row)}\nstatus {row.status}, verdict {row.verdict or "-"} '
             f'(expected {row.expected})\nfailed criteria: {", ".join(failed) or "none"}\n'
-            f'least zone clearance: {_metres(clearance)}\nrun folder: {row.run_dir or "-"}')
+            f'least zone clearance: {_metres(clearance)}\nrun folder: {row.run_dir or "-"}'
+            f'\nreplay: {replay or "-"}')
     ElementTree.indent(suite)
     return ('<?xml version="1.0" encoding="UTF-8"?>\n'
             + ElementTree.tostring(suite, encoding='unicode') + '\n')
@@ -654,17 +677,20 @@ def write_report(rows: Sequence[VariantRow], sweep_name: str, out_dir: PathLike,
             detail = row.error if row.status == 'ERROR' else row.first_failure
             links = ' '.join(f'<a href="{esc(link)}">{esc(name)}</a>'
                              for name, link in _run_links(row, out_dir, base))
+            replay = replay_command(row, base)
             cells = (
                 esc(row.name), f'<span class="bad">{esc(row.status)}</span>',
                 '<br>'.join(esc(line) for line in _values_text(row).splitlines()) or '-',
                 '<br>'.join(esc(name) for name in _failed_names(
                     row, variant_steps(row, base, out_dir))) or '-',
-                esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-')
+                esc(one_line(detail, MAX_DETAIL_CHARS)) or '-', links or '-',
+                f'<code>{esc(replay)}</code>' if replay else '-')
             worst_rows.append(cells + ((_metres(row.min_zone_clearance_m),)
                                        if clearances else ()))
         header = ('variant', 'status', 'values', 'failed criteria', 'first failure / error',
-                  'run') + (('least zone clearance',) if clearances else ())
-        parts.append(_html_table(header, worst_rows, numeric=(6,)))
+                  'run', 'replay (recorded)') + (('least zone clearance',) if clearances
+                                                 else ())
+        parts.append(_html_table(header, worst_rows, numeric=(7,)))
     parts.append('</body></html>')
     path = out_dir / 'report.html'
     path.write_text('\n'.join(parts) + '\n', encoding='utf-8')

@@ -54,8 +54,9 @@ from mecanum_bringup.scenario_runner import (
     interrupt, INTERRUPTED, interrupted_by, parse_real_time_factor, release_kept_system,
     run_scenario, RunOptions, stopping_cleanly_on_signals)
 from mecanum_bringup.sweep import (
-    input_digests, load_sweep, Sweep, SweepError, Variant, variant_documents, variants)
-from mecanum_bringup.sweep_store import ResultsStore, StoreError, VariantRow
+    goal_steps, input_digests, load_sweep, Sweep, SweepError, Variant, variant_documents,
+    variants)
+from mecanum_bringup.sweep_store import read_rows, ResultsStore, StoreError, VariantRow
 import yaml
 
 
@@ -79,22 +80,25 @@ def prepare(sweep: Sweep, check_dir: Path,
     naming the variant and its values, before anything runs. A search's variants are
     chosen a round at a time (sweep_search.round_variants).
     """
-    prepared = []
-    for variant in (variants(sweep) if chosen is None else chosen):
-        name = variant.name(sweep.name)
-        world_source = None
-        if 'person' in variant.values:
-            world_source = _world_document(sweep, variant)
-        scenario_doc, world_doc = variant_documents(sweep, variant, world_source)
-        _absolute_paths(scenario_doc, sweep.scenario_file.parent)
-        try:
-            write_variant_files(check_dir / name, scenario_doc, world_doc)
-        except ScenarioError as error:
-            raise SweepError(f'{sweep.source.name}: variant {variant.index} '
-                             f'({variant.describe()}) is not a valid scenario: {error}'
-                             ) from None
-        prepared.append(PreparedVariant(variant, name, scenario_doc, world_doc))
-    return prepared
+    return [prepare_one(sweep, variant, variant.name(sweep.name), check_dir)
+            for variant in (variants(sweep) if chosen is None else chosen)]
+
+
+def prepare_one(sweep: Sweep, variant: Variant, name: str, check_dir: Path) -> PreparedVariant:
+    """Return one variant's documents as run name, checked (SweepError if not valid)."""
+    world_source = None
+    if 'person' in variant.values:
+        world_source = _world_document(sweep, variant)
+    scenario_doc, world_doc = variant_documents(sweep, variant, world_source)
+    scenario_doc['scenario']['name'] = name
+    _absolute_paths(scenario_doc, sweep.scenario_file.parent)
+    try:
+        write_variant_files(check_dir / name, scenario_doc, world_doc)
+    except ScenarioError as error:
+        raise SweepError(f'{sweep.source.name}: variant {variant.index} '
+                         f'({variant.describe()}) is not a valid scenario: {error}'
+                         ) from None
+    return PreparedVariant(variant, name, scenario_doc, world_doc)
 
 
 def _world_document(sweep: Sweep, variant: Variant) -> Dict[str, Any]:
@@ -563,6 +567,80 @@ def write_outputs(sweep: Sweep, rows: List[VariantRow], out_dir: Path,
     say(f'report: {html}')
 
 
+# --- shrinking a failure -------------------------------------------------------------
+
+def shrink_variant(sweep: Sweep, out_dir: Path, index: int, options: Dict[str, Any],
+                   budget: int, say: Callable[[str], None] = print) -> int:
+    """
+    Shrink the stored failing variant index (sweep_shrink); return the exit code.
+
+    Each simplification runs as OUT/shrink/runs/NAME_IIII_sNN (warm, as the sweep ran);
+    OUT/shrink/shrink.json keeps every attempt. 2: no such failing variant in the store.
+    """
+    from mecanum_bringup.sweep_shrink import (
+        changes, describe, nominal_values, shrink)
+    from mecanum_control.robot_config import default_config_path, load_robot_config
+    rows = {row.index: row for row in read_rows(out_dir / 'results.sqlite')}
+    original = rows.get(index)
+    if original is None or original.status != 'UNEXPECTED':
+        say(f'run_sweep: --shrink {index}: ' + (
+            'no such variant in the store' if original is None else
+            f'{original.name} did not fail (status {original.status})'))
+        return 2
+    values = original.values
+    document = (sweep.scenarios[values['scenario']][1] if 'scenario' in values
+                else sweep.scenario_document)
+    nominal = nominal_values(sweep, values.get('scenario'), load_robot_config(
+        default_config_path()).wheel_friction_coefficient)
+    shrink_dir = out_dir / 'shrink'
+    say(f'{original.name}: {describe(values)}: {original.first_failure}')
+    say(f'shrinking (at most {budget} runs): nominal {describe(nominal)}')
+    attempt = [0]
+
+    def run(candidate: Dict[str, Any]) -> Optional[VariantRow]:
+        attempt[0] += 1
+        name = f'{original.name}_s{attempt[0]:02d}'
+        try:
+            item = prepare_one(sweep, Variant(index, candidate), name, shrink_dir / 'runs')
+        except SweepError as error:
+            say(f'  {name}: not a valid scenario: {error}')
+            return None
+        row = run_variant(*_arguments(item, shrink_dir, options))
+        if row is not None:
+            say(f'  {name}: {row.status}: {describe(candidate)}'
+                + (f': {row.first_failure}' if row.first_failure else ''))
+        return row
+
+    try:
+        with stopping_cleanly_on_signals():
+            result = shrink(original, nominal, goal_steps(document), run, budget)
+    finally:
+        release_kept_system()
+    smallest = next((a for a in reversed(result.attempts) if a.kept), None)
+    report = {
+        'variant': original.name, 'index': index, 'original': original.values,
+        'first_failure': original.first_failure, 'nominal': nominal,
+        'smallest': result.values, 'runs': result.runs, 'budget_spent': result.budget_spent,
+        'attempts': [{'change': a.change, 'values': a.values, 'kept': a.kept,
+                      'status': a.row.status if a.row else None,
+                      'first_failure': a.row.first_failure if a.row else None,
+                      'run_dir': a.row.run_dir if a.row else None}
+                     for a in result.attempts]}
+    shrink_dir.mkdir(parents=True, exist_ok=True)
+    (shrink_dir / 'shrink.json').write_text(json.dumps(report, indent=1) + '\n',
+                                            encoding='utf-8')
+    say(f'smallest failing variant after {result.runs} runs'
+        + (' (the budget ran out)' if result.budget_spent else '') + ': '
+        + describe(result.values) + (f' ({"; ".join(changes(result))})'
+                                     if changes(result) else ' (nothing simpler still fails)'))
+    replay = Path(smallest.row.run_dir) if smallest and smallest.row else Path(
+        original.run_dir)
+    say(f'replay it: ros2 run mecanum_bringup run_scenarios {replay / "scenario.yaml"} '
+        f'--record --out {shrink_dir / "replay"}')
+    say(f'every attempt: {shrink_dir / "shrink.json"}')
+    return 1 if INTERRUPTED.is_set() else 0
+
+
 # --- the command lines ---------------------------------------------------------------
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -590,6 +668,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         'on Ray, a variant reuses those of the one before it in the same '
                         'process or worker, with new nodes; see run_scenarios)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
+    parser.add_argument('--shrink', type=int, metavar='INDEX',
+                        help='shrink the stored failing variant INDEX: the simplest variant '
+                        'that still fails the same way (DIR/shrink/)')
+    parser.add_argument('--shrink-budget', type=int, default=30, metavar='RUNS',
+                        help='most runs a shrink may take (default 30)')
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f'--jobs must be at least 1, got {args.jobs}')
@@ -601,13 +684,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f'run_sweep: {error}', file=sys.stderr)
         return 2
     out_dir = Path(args.out or Path('reports') / 'sweeps' / sweep.name).resolve()
+    options = {'real_time_factor': args.real_time_factor, 'record': args.record,
+               'lockstep': True, 'warm': not args.cold}
+    if args.shrink is not None:
+        try:
+            return shrink_variant(sweep, out_dir, args.shrink, options, args.shrink_budget)
+        except StoreError as error:
+            print(f'run_sweep: {error}', file=sys.stderr)
+            return 2
     stream = open(os.devnull, 'w') if args.quiet else sys.stderr
     try:
-        summary = run_sweep(sweep, out_dir, args.jobs, args.ray,
-                            {'real_time_factor': args.real_time_factor,
-                             'record': args.record, 'lockstep': True,
-                             'warm': not args.cold},
-                            args.ray_retries, progress_stream=stream)
+        summary = run_sweep(sweep, out_dir, args.jobs, args.ray, options, args.ray_retries,
+                            progress_stream=stream)
     except (SweepError, StoreError) as error:
         print(f'run_sweep: {error}', file=sys.stderr)
         return 2

@@ -122,8 +122,12 @@ def test_junit_xml_has_a_testcase_per_variant(rows):
     assert error.get('message').startswith('office.yaml: spawn in a wall <x=1>')
     assert cases[2].find('failure') is None
     properties = {p.get('name'): p.get('value') for p in cases[0].find('properties')}
+    # The command that runs the variant again, recorded (a relative run folder: relative
+    # to the sweep folder).
     assert properties == {'index': '0', 'status': 'OK', 'seed': '0', 'world': 'apartment',
-                          'spawn': '(2.95, 2.00, 0)'}
+                          'spawn': '(2.95, 2.00, 0)',
+                          'replay': 'ros2 run mecanum_bringup run_scenarios '
+                                    'runs/tour_0000/scenario.yaml --record --out replay'}
     out = cases[3].find('system-out').text
     assert 'world = office' in out and 'failed criteria: step 1, step 2, no_collision' in out
 
@@ -166,6 +170,10 @@ def test_write_report_writes_the_page_the_plot_and_junit(rows, tmp_path):
     assert '<a href="runs/tour_0001/summary.json">summary.json</a>' in worst
     assert '<a href="runs/tour_0001/bag/">bag</a>' in worst
     assert '<a href="../../elsewhere/tour_0003/summary.json">summary.json</a>' in worst
+    # Each worst variant's replay: the command that runs it again, recorded, into the
+    # replay/ folder beside its runs/ folder (here tmp_path/elsewhere/tour_0003).
+    assert (f'<code>ros2 run mecanum_bringup run_scenarios {run_3}/scenario.yaml --record '
+            f'--out {tmp_path}/replay</code>') in worst
     assert 'elsewhere/tour_0003/run.png' not in worst
     # JUnit beside it.
     root = ElementTree.parse(str(out / 'junit.xml')).getroot()
