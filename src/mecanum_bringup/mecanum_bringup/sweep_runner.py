@@ -532,21 +532,25 @@ def _run_search(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
         ran.append(row)
         bar.advance(row)
 
+    # One Ray cluster for every round (local:N is started once, not per round).
+    cluster = _ray_cluster(ray_address) if ray_address else contextlib.nullcontext(None)
     try:
-        for number in range(rounds):
-            chosen = round_variants(sweep, number, store.rows())
-            todo = [item for item in prepare(sweep, out_dir / 'runs', chosen)
-                    if item.variant.index not in store.done_indices()]
-            if todo:
-                bar.draw()
-                problems += _run_batch(todo, out_dir, jobs, ray_address, options, retries,
-                                       on_row, say, keep_system=True)
-            missing = [item.name for item in todo
-                       if item.variant.index not in store.done_indices()]
-            if missing:
-                say(f'{sweep.name}: round {number + 1} of {rounds} has no result for '
-                    f'{", ".join(missing)}: the search stops here (run it again to go on)')
-                break
+        with cluster as address:
+            for number in range(rounds):
+                chosen = round_variants(sweep, number, store.rows())
+                todo = [item for item in prepare(sweep, out_dir / 'runs', chosen)
+                        if item.variant.index not in store.done_indices()]
+                if todo:
+                    bar.draw()
+                    problems += _run_batch(todo, out_dir, jobs, address, options, retries,
+                                           on_row, say, keep_system=True)
+                missing = [item.name for item in todo
+                           if item.variant.index not in store.done_indices()]
+                if missing:
+                    say(f'{sweep.name}: round {number + 1} of {rounds} has no result for '
+                        f'{", ".join(missing)}: the search stops here (run it again to go '
+                        'on)')
+                    break
     finally:
         release_kept_system()
         bar.close()
