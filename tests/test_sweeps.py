@@ -329,3 +329,25 @@ def test_a_failure_shrinks_to_the_goal_that_fails_and_replays_with_one_command(
     assert summary['verdict'] == 'fail' and summary['steps'][0]['error_code'] != 0, summary
     assert (Path(replay_out) / name / 'bag').is_dir()
     assert replay.returncode == 1, replay.stdout      # an unexpected verdict
+
+
+UNTIL_FAILURE = """
+sweep:
+  name: until_failure
+  scenario: refusals.yaml
+  axes:
+    goals: [[0], [1], [2]]
+"""
+
+
+def test_until_failure_stops_after_the_first_failing_variant(tmp_path, sweep_env):
+    """run_sweep --until-failure: goal 0 passes, goal 1 fails, goal 2 never runs."""
+    _, env, _ = sweep_env
+    sweep_path = tmp_path / 'until.yaml'
+    sweep_path.write_text(textwrap.dedent(UNTIL_FAILURE))
+    out = tmp_path / 'until'
+    process = run_sweep(sweep_path, out, env, '--until-failure')
+    output, _ = process.communicate(timeout=600)
+    assert process.returncode == 0, output
+    assert statuses(out) == {0: 'OK', 1: 'UNEXPECTED'}, output
+    assert 'first failure: until_failure_0001' in output

@@ -4,7 +4,9 @@ run_sweep: run every variant of a sweep file and report failure rates.
 Usage::
 
     ros2 run mecanum_bringup run_sweep src/mecanum_bringup/sweeps/tour_variants.yaml \\
-        --jobs 2 [--out reports/sweeps/NAME] [--ray ADDRESS] [--real-time-factor max]
+        --jobs 2 [--out reports/sweeps/NAME] [--ray ADDRESS] [--real-time-factor max] \\
+        [--until-failure]
+    ros2 run mecanum_bringup run_sweep SWEEP --out DIR --shrink INDEX
     ros2 run mecanum_bringup compare_sweeps reports/sweeps/A reports/sweeps/B
 
 Each variant (:mod:`mecanum_bringup.sweep`) is a scenario run exactly as run_scenarios
@@ -26,8 +28,14 @@ elsewhere when its worker or node dies (``--ray-retries``, 3). The run folders s
 the node that ran the variant (the row's worker names it). Ray is an extra: installed
 by ``make setup``; the sweep imports it only with --ray.
 
+A search (``mode: search``) runs in rounds, each drawn from the rows so far
+(:mod:`mecanum_bringup.sweep_search`). ``--until-failure`` stops at the first variant
+whose verdict is not the expected one; ``--shrink INDEX`` shrinks a stored failing
+variant to the simplest that still fails (:mod:`mecanum_bringup.sweep_shrink`).
+
 Exit codes: 0 every variant has a row (whatever their verdicts: a sweep measures rates),
-1 interrupted or some variants could not run, 2 invalid sweep file or store.
+or --until-failure found one; 1 interrupted or some variants could not run; 2 invalid
+sweep file or store.
 """
 
 import argparse
@@ -302,7 +310,8 @@ def run_local(todo: Sequence[PreparedVariant], out_dir: Path, options: Dict[str,
     Run the variants jobs at once in worker processes; return why some did not run.
 
     keep_system: with one job, the warm system stays for the next call (a search's next
-    round; release_kept_system ends it), else it ends here.
+    round; release_kept_system ends it), else it ends here. options['until_failure']:
+    with one job, no variant starts after one whose verdict was not the expected one.
     """
     problems: List[str] = []
     if jobs <= 1:
@@ -313,6 +322,8 @@ def run_local(todo: Sequence[PreparedVariant], out_dir: Path, options: Dict[str,
                 row = run_variant(*_arguments(item, out_dir, options))
                 if row is not None:
                     on_row(row)
+                    if options.get('until_failure') and row.status == 'UNEXPECTED':
+                        break
         finally:
             if not keep_system or INTERRUPTED.is_set():
                 release_kept_system()
@@ -488,8 +499,14 @@ def _run_all(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
         problems = _run_batch(todo, out_dir, jobs, ray_address, options, retries, on_row, say)
         bar.close()
     return {'total': len(prepared), 'ran': len(ran), 'skipped': len(done_before),
-            'problems': problems,
+            'problems': problems, 'found': _first_failure(store.rows()),
             'interrupted': interrupted_by() if INTERRUPTED.is_set() else None}
+
+
+def _first_failure(rows: Sequence[VariantRow]) -> Optional[str]:
+    """Return the name of the first (lowest index) variant that failed, or None."""
+    failed = [row for row in rows if row.status == 'UNEXPECTED']
+    return min(failed, key=lambda row: row.index).name if failed else None
 
 
 def _run_batch(todo: Sequence[PreparedVariant], out_dir: Path, jobs: int,
@@ -544,6 +561,10 @@ def _run_search(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
                     bar.draw()
                     problems += _run_batch(todo, out_dir, jobs, address, options, retries,
                                            on_row, say, keep_system=True)
+                if options.get('until_failure') and _first_failure(store.rows()):
+                    say(f'{sweep.name}: {_first_failure(store.rows())} failed: the search '
+                        'stops here (--until-failure)')
+                    break
                 missing = [item.name for item in todo
                            if item.variant.index not in store.done_indices()]
                 if missing:
@@ -555,7 +576,7 @@ def _run_search(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
         release_kept_system()
         bar.close()
     return {'total': sweep.samples, 'ran': len(ran), 'skipped': len(done_before),
-            'problems': problems,
+            'problems': problems, 'found': _first_failure(store.rows()),
             'interrupted': interrupted_by() if INTERRUPTED.is_set() else None}
 
 
@@ -672,6 +693,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         'on Ray, a variant reuses those of the one before it in the same '
                         'process or worker, with new nodes; see run_scenarios)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
+    parser.add_argument('--until-failure', action='store_true',
+                        help='stop once a variant fails (its verdict not the expected one): '
+                        'with --jobs 1, or between the rounds of a search')
     parser.add_argument('--shrink', type=int, metavar='INDEX',
                         help='shrink the stored failing variant INDEX: the simplest variant '
                         'that still fails the same way (DIR/shrink/)')
@@ -688,8 +712,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f'run_sweep: {error}', file=sys.stderr)
         return 2
     out_dir = Path(args.out or Path('reports') / 'sweeps' / sweep.name).resolve()
+    if args.until_failure and sweep.mode != 'search' and (args.jobs > 1 or args.ray):
+        parser.error('--until-failure stops between variants: it needs --jobs 1 (without '
+                     '--ray) unless the sweep is a search (which stops between rounds)')
     options = {'real_time_factor': args.real_time_factor, 'record': args.record,
-               'lockstep': True, 'warm': not args.cold}
+               'lockstep': True, 'warm': not args.cold, 'until_failure': args.until_failure}
     if args.shrink is not None:
         try:
             return shrink_variant(sweep, out_dir, args.shrink, options, args.shrink_budget)
@@ -711,7 +738,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     print(f'{summary["done"]} of {summary["total"]} variants done ({summary["ran"]} run now, '
           f'{summary["skipped"]} from before)'
           + (f'; interrupted ({summary["interrupted"]}): run the same command to resume'
-             if summary['interrupted'] else ''))
+             if summary['interrupted'] else '')
+          + (f'; first failure: {summary["found"]}' if summary['found'] else ''))
+    if args.until_failure and summary['found'] and not summary['interrupted']:
+        return 0
     return 0 if summary['done'] == summary['total'] else 1
 
 

@@ -336,3 +336,13 @@ def test_a_store_is_refused_once_a_file_its_variants_read_was_edited(folder, cap
     err = capsys.readouterr().err
     assert 'three_goals.yaml (edited)' in err and 'delete the store' in err
     assert not (folder / 'out' / 'runs').exists()
+
+
+def test_until_failure_needs_one_job_unless_the_sweep_is_a_search(folder, capsys):
+    from mecanum_bringup.sweep_runner import main
+    path = sweep_file(folder, 'seed: [1, 2]\n')
+    with pytest.raises(SystemExit) as stopped:
+        main([str(path), '--until-failure', '--jobs', '2', '--out', str(folder / 'never')])
+    assert stopped.value.code == 2
+    assert '--until-failure stops between variants' in capsys.readouterr().err
+    assert not (folder / 'never').exists()
