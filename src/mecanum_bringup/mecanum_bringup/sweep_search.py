@@ -13,9 +13,14 @@ every variant run so far, and each fitted distribution is mixed with the axis's 
 
 Per axis:
 
-- ``uniform: [lo, hi]`` (floor friction, sensor noise, fault onset): a normal with the
-  elites' mean and standard deviation (at least MIN_SIGMA_FRACTION of hi - lo), drawn
-  with probability ``smoothing``, else uniform; clipped to [lo, hi].
+- ``uniform: [lo, hi]`` (floor friction, sensor noise, fault onset): a normal centred on
+  the best variant so far with SPREAD_FACTOR times the elites' standard deviation (at
+  least MIN_SIGMA_FRACTION of hi - lo), drawn with probability ``smoothing``, else
+  uniform; clipped to [lo, hi]. Centred on the elites' mean with their own spread (the
+  textbook fit), the search was slower than random sampling on the planted failure of
+  bench/failure_search.py, which lies at the edge of the axis: the mean stays inside
+  what was tried (offline, on that failure's measured error curve, 100 master seeds:
+  median 44 runs against random's 74; centred on the best with twice the spread: 11.5).
 - a list (worlds, spawns, persons, faults, numbers): each value's probability is
   ``smoothing`` x its share of the elites + (1 - smoothing) / len(list).
 - ``range`` (seed) and ``sample`` (goals): drawn as in random mode (a seed has no
@@ -43,6 +48,8 @@ from mecanum_bringup.sweep_store import VariantRow
 MIN_ELITES = 2
 #: A fitted normal's standard deviation is at least this fraction of the axis's range.
 MIN_SIGMA_FRACTION = 0.02
+#: A fitted normal's standard deviation is this many times the elites'.
+SPREAD_FACTOR = 2.0
 
 
 def objective_value(row: VariantRow, objective: str) -> Optional[float]:
@@ -127,9 +134,11 @@ def _draw_fitted(axis: str, spec: Any, sweep: Sweep, index: int,
                   if isinstance(row.values.get(axis), (int, float))]
         if len(values) < MIN_ELITES or rng.random() >= smoothing:
             return round(rng.uniform(lo, hi), 4)
-        mean = statistics.fmean(values)
-        sigma = max(statistics.pstdev(values), MIN_SIGMA_FRACTION * (hi - lo))
-        return round(min(hi, max(lo, rng.gauss(mean, sigma))), 4)
+        # Centred on the best variant so far (elites come best first), spread wider than
+        # the elites: a failure region at the edge of what was tried is reached by
+        # stepping beyond the best, which a normal about the elites' mean never does.
+        sigma = max(SPREAD_FACTOR * statistics.pstdev(values), MIN_SIGMA_FRACTION * (hi - lo))
+        return round(min(hi, max(lo, rng.gauss(values[0], sigma))), 4)
     return draw_value(axis, spec, sweep, index)
 
 
