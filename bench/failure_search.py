@@ -72,7 +72,9 @@ def main() -> int:
     found = {way: {} for way in WAYS}
     started = time.monotonic()
     print(f'{SWEEP.name}: runs to the first failure (budget {args.budget})')
-    jobs = [(way, seed) for way in WAYS for seed in args.seeds]   # random's are longest
+    # Every search first (they are short), then the random sweeps: a run cut short
+    # still has each seed's search.
+    jobs = [('search', seed) for seed in args.seeds] + [('random', seed) for seed in args.seeds]
 
     def run(job):
         way, seed = job
@@ -88,7 +90,8 @@ def main() -> int:
         list(pool.map(run, jobs))
     print(f'{"seed":>5} {"random":>8} {"search":>8}')
     for seed in args.seeds:
-        cells = [str(found[way][seed][0] or f'>{found[way][seed][1]}') for way in WAYS]
+        cells = [str(found[way][seed][0] or f'>{found[way][seed][1]}')
+                 if seed in found[way] else '-' for way in WAYS]
         print(f'{seed:>5} {cells[0]:>8} {cells[1]:>8}')
     summary = {}
     for way in WAYS:
