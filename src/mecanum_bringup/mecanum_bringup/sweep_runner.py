@@ -561,9 +561,10 @@ def _run_search(sweep: Sweep, store: ResultsStore, out_dir: Path, jobs: int,
                     bar.draw()
                     problems += _run_batch(todo, out_dir, jobs, address, options, retries,
                                            on_row, say, keep_system=True)
-                if options.get('until_failure') and _first_failure(store.rows()):
-                    say(f'{sweep.name}: {_first_failure(store.rows())} failed: the search '
-                        'stops here (--until-failure)')
+                found = _first_failure(store.rows()) if options.get('until_failure') else None
+                if found:
+                    say(f'{sweep.name}: {found} failed: the search stops here '
+                        '(--until-failure)')
                     break
                 missing = [item.name for item in todo
                            if item.variant.index not in store.done_indices()]
@@ -615,7 +616,7 @@ def shrink_variant(sweep: Sweep, out_dir: Path, index: int, options: Dict[str, A
     values = original.values
     document = (sweep.scenarios[values['scenario']][1] if 'scenario' in values
                 else sweep.scenario_document)
-    nominal = nominal_values(sweep, values.get('scenario'), load_robot_config(
+    nominal = nominal_values(document, load_robot_config(
         default_config_path()).wheel_friction_coefficient)
     shrink_dir = out_dir / 'shrink'
     say(f'{original.name}: {describe(values)}: {original.first_failure}')

@@ -64,10 +64,9 @@ def objective_value(row: VariantRow, objective: str) -> Optional[float]:
         return None
     if row.status != 'OK':
         return -math.inf
-    groups = margin_groups(row)
     if objective == LEAST:
-        return min(groups.values()) if groups else None
-    return groups.get(objective)
+        return row.least_margin
+    return margin_groups(row).get(objective)
 
 
 def round_count(sweep: Sweep) -> int:

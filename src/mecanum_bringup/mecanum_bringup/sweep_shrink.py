@@ -22,7 +22,6 @@ import math
 import re
 from typing import Any, Callable, Dict, List, Optional, Sequence, Set, Tuple
 
-from mecanum_bringup.sweep import Sweep
 from mecanum_bringup.sweep_store import VariantRow
 
 #: The nominal value of each numeric axis (None: the scenario's own, see nominal_values).
@@ -124,17 +123,15 @@ def simplifications(values: Dict[str, Any], nominal: Dict[str, Any],
     return found
 
 
-def nominal_values(sweep: Sweep, scenario_name: Optional[str],
+def nominal_values(scenario_document: Dict[str, Any],
                    wheel_friction_coefficient: float) -> Dict[str, Any]:
     """
-    Return the nominal value of each numeric axis for a variant of the sweep.
+    Return the nominal value of each numeric axis for a variant of a scenario document.
 
-    floor_friction_coefficient: the scenario's (of the scenario axis's scenario_name, if
-    any) or, when it keeps the robot's own (0), wheel_friction_coefficient;
-    sensor_noise_scale: the scenario's (1 by default).
+    floor_friction_coefficient: the scenario's or, when it keeps the robot's own (0),
+    wheel_friction_coefficient; sensor_noise_scale: the scenario's (1 by default).
     """
-    document = (sweep.scenarios[scenario_name][1] if scenario_name and sweep.scenarios
-                else sweep.scenario_document)['scenario']
+    document = scenario_document['scenario']
     friction = float(document.get('floor_friction_coefficient', 0.0) or 0.0)
     return {'floor_friction_coefficient': friction if friction > 0.0
             else float(wheel_friction_coefficient),

@@ -390,9 +390,9 @@ def axis_margins(rows: Sequence[VariantRow], axis: str,
     """
     points = []
     for label, members in axis_groups(rows, axis):
-        values = [(margin_groups(row)[group], row.failed) for row in members
-                  if group in margin_groups(row)]
-        points.append((label, values))
+        grouped = [(margin_groups(row), row.failed) for row in members]
+        points.append((label, [(groups[group], failed) for groups, failed in grouped
+                               if group in groups]))
     return points
 
 
